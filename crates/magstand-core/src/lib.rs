@@ -1,0 +1,37 @@
+//! Shared foundations of magstand.
+//!
+//! * [`Recording`]: one magnetometer sample per row, with the motor commands and optional
+//!   battery, temperature, IMU and ground-truth columns. Every subcommand reads and writes it.
+//! * [`recording_csv`]: the public CSV contract of a recording, read with errors that name the
+//!   file, row and column.
+//! * [`rbf`]: normalized Gaussian radial basis functions and the blended local linear form of
+//!   Czyba, Janusz and Szafranski (eq. 12-14), used by the simulator's paper-table disturbance
+//!   and by the identification crate.
+//! * [`atomic_file`]: write-then-rename output so that no half-written file is ever left behind.
+//!
+//! # Example
+//! ```
+//! use magstand_core::{Recording, recording_csv};
+//!
+//! let text = "t_s,thr,mag_x_ut,mag_y_ut,mag_z_ut\n0.0,0.0,20.0,1.0,-45.0\n0.1,0.5,22.0,3.0,-50.0\n";
+//! let rec = recording_csv::read_str(text, "inline.csv").unwrap();
+//! assert_eq!(rec.len(), 2);
+//! assert_eq!(rec.overall_throttle(1), 0.5);
+//! assert_eq!(rec.mag_ut[1].y, 3.0);
+//! ```
+#![warn(missing_docs)]
+
+pub mod atomic_file;
+mod error;
+pub mod rbf;
+mod recording;
+pub mod recording_csv;
+
+pub use error::CoreError;
+pub use recording::{GroundTruth, ImuColumns, Recording};
+
+/// A 3-vector of f64, used for every per-axis quantity (field, acceleration, rate).
+pub type Vec3 = nalgebra::Vector3<f64>;
+
+/// Axis names in the order magstand always uses them (body frame: forward, right, down).
+pub const AXES: [&str; 3] = ["x", "y", "z"];

@@ -1,0 +1,185 @@
+use crate::{CoreError, Vec3};
+
+/// Columns that only a simulation can know: the field without motors, the motor-caused
+/// disturbance and the noise standard deviation at each sample.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct GroundTruth {
+    /// `true_field_*_ut`: what the sensor would read with the motors off and no noise (eq. 8's m,
+    /// including the sensor's own hard and soft iron), microtesla.
+    pub field_ut: Vec<Vec3>,
+    /// `true_dist_*_ut`: the non-zero-mean disturbance caused by running the motors (eq. 8's dmag).
+    pub dist_ut: Vec<Vec3>,
+    /// `true_sd_*_ut`: standard deviation of the zero-mean noise mu + eta at that sample.
+    pub sd_ut: Vec<Vec3>,
+}
+
+/// Accelerometer and gyroscope columns.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct ImuColumns {
+    /// `acc_{x,y,z}_mps2`: specific force in the body frame, m/s^2.
+    pub acc_mps2: Vec<Vec3>,
+    /// `gyr_{x,y,z}_rps`: angular rate in the body frame, rad/s.
+    pub gyr_rps: Vec<Vec3>,
+}
+
+/// One magnetometer sample per row, with what was commanded and measured alongside it.
+///
+/// Columns are stored column-major. All vectors have [`Recording::len`] entries; use
+/// [`Recording::check`] after building one by hand.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Recording {
+    /// `t_s`: sample time, seconds, strictly increasing.
+    pub t_s: Vec<f64>,
+    /// Motor commands `thr_1 .. thr_N` in 0..1, `thr[motor][row]`. A recording read from a
+    /// single `thr` column has one entry here and [`Recording::overall_only`] set.
+    pub thr: Vec<Vec<f64>>,
+    /// The recording carried only the overall throttle (`thr`), not per-motor commands.
+    pub overall_only: bool,
+    /// `mag_{x,y,z}_ut`: measured field in the body frame, microtesla.
+    pub mag_ut: Vec<Vec3>,
+    /// `bat_v`: supply voltage, volts.
+    pub bat_v: Option<Vec<f64>>,
+    /// `bat_a`: supply current, amperes.
+    pub bat_a: Option<Vec<f64>>,
+    /// `temp_c`: board temperature, degrees Celsius.
+    pub temp_c: Option<Vec<f64>>,
+    /// Accelerometer and gyroscope, when recorded.
+    pub imu: Option<ImuColumns>,
+    /// Ground truth, present in simulated recordings.
+    pub truth: Option<GroundTruth>,
+    /// Any other columns, kept verbatim (name, cells) so that tools pass them through.
+    pub extra: Vec<(String, Vec<String>)>,
+}
+
+impl Recording {
+    /// Number of rows (magnetometer samples).
+    pub fn len(&self) -> usize {
+        self.t_s.len()
+    }
+
+    /// True when the recording has no rows.
+    pub fn is_empty(&self) -> bool {
+        self.t_s.is_empty()
+    }
+
+    /// Number of motor command columns (1 when only the overall throttle was recorded).
+    pub fn motor_count(&self) -> usize {
+        self.thr.len()
+    }
+
+    /// Overall throttle at a row: the mean of the motor commands, in 0..1.
+    ///
+    /// The paper defines the overall throttle as the sum of the motor commands (eq. 7) and then
+    /// normalizes it to 0..1; the mean is that normalized sum.
+    pub fn overall_throttle(&self, row: usize) -> f64 {
+        let n = self.thr.len().max(1) as f64;
+        self.thr.iter().map(|m| m[row]).sum::<f64>() / n
+    }
+
+    /// Overall throttle for every row.
+    pub fn overall_throttle_column(&self) -> Vec<f64> {
+        (0..self.len()).map(|r| self.overall_throttle(r)).collect()
+    }
+
+    /// Motor commands of one row, one entry per motor.
+    pub fn motor_commands(&self, row: usize) -> Vec<f64> {
+        self.thr.iter().map(|m| m[row]).collect()
+    }
+
+    /// Mean sample interval in seconds (0 for fewer than two rows).
+    pub fn mean_interval_s(&self) -> f64 {
+        let n = self.len();
+        if n < 2 {
+            return 0.0;
+        }
+        (self.t_s[n - 1] - self.t_s[0]) / (n - 1) as f64
+    }
+
+    /// Keeps only the rows whose index satisfies `keep`, in every column.
+    pub fn select_rows(&self, keep: impl Fn(usize) -> bool) -> Recording {
+        let rows: Vec<usize> = (0..self.len()).filter(|&r| keep(r)).collect();
+        let pick = |v: &Vec<f64>| rows.iter().map(|&r| v[r]).collect::<Vec<_>>();
+        let pick3 = |v: &Vec<Vec3>| rows.iter().map(|&r| v[r]).collect::<Vec<_>>();
+        Recording {
+            t_s: pick(&self.t_s),
+            thr: self.thr.iter().map(pick).collect(),
+            overall_only: self.overall_only,
+            mag_ut: pick3(&self.mag_ut),
+            bat_v: self.bat_v.as_ref().map(pick),
+            bat_a: self.bat_a.as_ref().map(pick),
+            temp_c: self.temp_c.as_ref().map(pick),
+            imu: self.imu.as_ref().map(|i| ImuColumns {
+                acc_mps2: pick3(&i.acc_mps2),
+                gyr_rps: pick3(&i.gyr_rps),
+            }),
+            truth: self.truth.as_ref().map(|g| GroundTruth {
+                field_ut: pick3(&g.field_ut),
+                dist_ut: pick3(&g.dist_ut),
+                sd_ut: pick3(&g.sd_ut),
+            }),
+            extra: self
+                .extra
+                .iter()
+                .map(|(n, c)| (n.clone(), rows.iter().map(|&r| c[r].clone()).collect()))
+                .collect(),
+        }
+    }
+
+    /// Checks that every column has one value per row, values are finite, motor commands lie in
+    /// 0..1 and time strictly increases. Row numbers in errors are 1-based.
+    pub fn check(&self) -> Result<(), CoreError> {
+        let n = self.len();
+        let len_err = |column: &str, found: usize| CoreError::ColumnLength {
+            column: column.to_string(),
+            found,
+            expected: n,
+        };
+        if self.thr.is_empty() {
+            return Err(len_err("thr_1", 0));
+        }
+        for (i, m) in self.thr.iter().enumerate() {
+            if m.len() != n {
+                return Err(len_err(&format!("thr_{}", i + 1), m.len()));
+            }
+        }
+        if self.mag_ut.len() != n {
+            return Err(len_err("mag_*_ut", self.mag_ut.len()));
+        }
+        for (name, col) in [
+            ("bat_v", &self.bat_v),
+            ("bat_a", &self.bat_a),
+            ("temp_c", &self.temp_c),
+        ] {
+            if let Some(c) = col
+                && c.len() != n
+            {
+                return Err(len_err(name, c.len()));
+            }
+        }
+        if let Some(i) = &self.imu {
+            if i.acc_mps2.len() != n {
+                return Err(len_err("acc_*_mps2", i.acc_mps2.len()));
+            }
+            if i.gyr_rps.len() != n {
+                return Err(len_err("gyr_*_rps", i.gyr_rps.len()));
+            }
+        }
+        if let Some(g) = &self.truth {
+            for (name, c) in [
+                ("true_field_*_ut", &g.field_ut),
+                ("true_dist_*_ut", &g.dist_ut),
+                ("true_sd_*_ut", &g.sd_ut),
+            ] {
+                if c.len() != n {
+                    return Err(len_err(name, c.len()));
+                }
+            }
+        }
+        for (name, c) in &self.extra {
+            if c.len() != n {
+                return Err(len_err(name, c.len()));
+            }
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,452 @@
+//! The recording CSV format: magstand's public file contract.
+//!
+//! One header row, then one row per magnetometer sample. Columns, in the order magstand writes
+//! them (readers accept any order):
+//!
+//! | column | unit | required |
+//! |---|---|---|
+//! | `t_s` | s, strictly increasing | yes |
+//! | `thr_1` .. `thr_N` (or a single `thr`, the overall throttle) | command 0..1 | yes |
+//! | `mag_x_ut`, `mag_y_ut`, `mag_z_ut` | µT, body frame (x forward, y right, z down) | yes |
+//! | `bat_v`, `bat_a` | V, A | no |
+//! | `temp_c` | °C | no |
+//! | `acc_{x,y,z}_mps2`, `gyr_{x,y,z}_rps` | m/s², rad/s (each group all three or none) | no |
+//! | `true_field_{x,y,z}_ut`, `true_dist_{x,y,z}_ut`, `true_sd_{x,y,z}_ut` | µT (simulations; all nine or none) | no |
+//!
+//! Any other column is carried through verbatim. Numbers are written with fixed precision so
+//! that the same recording always gives the same bytes.
+use std::collections::HashMap;
+use std::io::{Read, Write};
+use std::path::{Path, PathBuf};
+
+use crate::atomic_file;
+use crate::recording::{GroundTruth, ImuColumns, Recording};
+use crate::{AXES, CoreError, Vec3};
+
+/// Reads a recording from a CSV file.
+pub fn read(path: impl AsRef<Path>) -> Result<Recording, CoreError> {
+    let path = path.as_ref();
+    let file = std::fs::File::open(path).map_err(|e| CoreError::io(path, e))?;
+    read_from(std::io::BufReader::new(file), path)
+}
+
+/// Reads a recording from CSV text; `origin` names it in error messages.
+pub fn read_str(text: &str, origin: impl AsRef<Path>) -> Result<Recording, CoreError> {
+    read_from(text.as_bytes(), origin.as_ref())
+}
+
+/// Column lookup over one header, with the file name for its errors.
+struct Header<'a> {
+    path: &'a Path,
+    index: HashMap<String, usize>,
+    used: Vec<bool>,
+}
+
+impl Header<'_> {
+    fn find(&mut self, name: &str) -> Option<usize> {
+        let i = *self.index.get(name)?;
+        self.used[i] = true;
+        Some(i)
+    }
+
+    fn require(&mut self, name: &str, expected: &str) -> Result<usize, CoreError> {
+        self.find(name).ok_or_else(|| CoreError::MissingColumn {
+            path: self.path.to_path_buf(),
+            column: name.to_string(),
+            expected: expected.to_string(),
+        })
+    }
+
+    /// A group of three axis columns `{prefix}{x,y,z}{suffix}`: all present, or none.
+    fn triple(&mut self, prefix: &str, suffix: &str) -> Result<Option<[usize; 3]>, CoreError> {
+        let names = AXES.map(|a| format!("{prefix}{a}{suffix}"));
+        let found = names.clone().map(|n| self.index.contains_key(&n));
+        if found.iter().all(|f| !f) {
+            return Ok(None);
+        }
+        let mut out = [0; 3];
+        for (k, n) in names.iter().enumerate() {
+            out[k] = self.require(n, "the x, y and z columns of a group come together")?;
+        }
+        Ok(Some(out))
+    }
+}
+
+fn parse_cell(path: &Path, row: usize, column: &str, cell: &str) -> Result<f64, CoreError> {
+    let bad = || CoreError::BadCell {
+        path: path.to_path_buf(),
+        row,
+        column: column.to_string(),
+        found: cell.to_string(),
+        expected: "a finite number".to_string(),
+    };
+    let v: f64 = cell.trim().parse().map_err(|_| bad())?;
+    if v.is_finite() { Ok(v) } else { Err(bad()) }
+}
+
+fn read_from(reader: impl Read, path: &Path) -> Result<Recording, CoreError> {
+    let mut csv = csv::ReaderBuilder::new()
+        .has_headers(true)
+        .from_reader(reader);
+    let csv_err = |row: usize, e: csv::Error| CoreError::Csv {
+        path: path.to_path_buf(),
+        row,
+        message: e.to_string(),
+    };
+    let names: Vec<String> = csv
+        .headers()
+        .map_err(|e| csv_err(0, e))?
+        .iter()
+        .map(|s| s.trim().to_string())
+        .collect();
+    let mut index = HashMap::new();
+    for (i, n) in names.iter().enumerate() {
+        if index.insert(n.clone(), i).is_some() {
+            return Err(CoreError::DuplicateColumn {
+                path: path.to_path_buf(),
+                column: n.clone(),
+            });
+        }
+    }
+    let mut h = Header {
+        path,
+        used: vec![false; names.len()],
+        index,
+    };
+    let t_col = h.require("t_s", "time in seconds")?;
+    let thr_cols: Vec<usize> = if h.index.contains_key("thr_1") {
+        let mut v = Vec::new();
+        while let Some(i) = h.find(&format!("thr_{}", v.len() + 1)) {
+            v.push(i);
+        }
+        v
+    } else {
+        vec![h.require(
+            "thr",
+            "motor commands thr_1..thr_N or the overall throttle thr, 0..1",
+        )?]
+    };
+    let overall_only = !h.index.contains_key("thr_1");
+    let mag_cols = h
+        .triple("mag_", "_ut")?
+        .ok_or_else(|| CoreError::MissingColumn {
+            path: path.to_path_buf(),
+            column: "mag_x_ut".into(),
+            expected: "magnetometer x, y, z in microtesla".into(),
+        })?;
+    let bat_v = h.find("bat_v");
+    let bat_a = h.find("bat_a");
+    let temp_c = h.find("temp_c");
+    let acc = h.triple("acc_", "_mps2")?;
+    let gyr = h.triple("gyr_", "_rps")?;
+    let tf = h.triple("true_field_", "_ut")?;
+    let td = h.triple("true_dist_", "_ut")?;
+    let ts = h.triple("true_sd_", "_ut")?;
+    let truth = match (tf, td, ts) {
+        (None, None, None) => None,
+        (Some(f), Some(d), Some(s)) => Some([f, d, s]),
+        _ => {
+            let missing = [
+                ("true_field_x_ut", tf),
+                ("true_dist_x_ut", td),
+                ("true_sd_x_ut", ts),
+            ]
+            .into_iter()
+            .find(|(_, c)| c.is_none())
+            .map(|(n, _)| n)
+            .unwrap_or("true_field_x_ut");
+            return Err(CoreError::MissingColumn {
+                path: path.to_path_buf(),
+                column: missing.into(),
+                expected: "ground truth comes as all of true_field, true_dist and true_sd".into(),
+            });
+        }
+    };
+    let extra_cols: Vec<usize> = (0..names.len()).filter(|&i| !h.used[i]).collect();
+
+    let thr_names: Vec<String> = if overall_only {
+        vec!["thr".into()]
+    } else {
+        (1..=thr_cols.len()).map(|i| format!("thr_{i}")).collect()
+    };
+    let mut rec = Recording {
+        thr: vec![Vec::new(); thr_cols.len()],
+        overall_only,
+        bat_v: bat_v.map(|_| Vec::new()),
+        bat_a: bat_a.map(|_| Vec::new()),
+        temp_c: temp_c.map(|_| Vec::new()),
+        imu: (acc.is_some() || gyr.is_some()).then(ImuColumns::default),
+        truth: truth.map(|_| GroundTruth::default()),
+        extra: extra_cols
+            .iter()
+            .map(|&i| (names[i].clone(), Vec::new()))
+            .collect(),
+        ..Recording::default()
+    };
+    let mut record = csv::StringRecord::new();
+    let mut row = 0usize;
+    loop {
+        match csv.read_record(&mut record) {
+            Ok(false) => break,
+            Ok(true) => {}
+            Err(e) => return Err(csv_err(row + 1, e)),
+        }
+        row += 1;
+        let num = |i: usize| parse_cell(path, row, &names[i], &record[i]);
+        let vec3 = |c: [usize; 3]| -> Result<Vec3, CoreError> {
+            Ok(Vec3::new(num(c[0])?, num(c[1])?, num(c[2])?))
+        };
+        let t = num(t_col)?;
+        if let Some(&prev) = rec.t_s.last()
+            && t <= prev
+        {
+            return Err(CoreError::TimeNotIncreasing {
+                path: path.to_path_buf(),
+                row,
+                t_s: t,
+                previous_s: prev,
+            });
+        }
+        rec.t_s.push(t);
+        for (k, &c) in thr_cols.iter().enumerate() {
+            let v = num(c)?;
+            if !(0.0..=1.0).contains(&v) {
+                return Err(CoreError::BadCell {
+                    path: path.to_path_buf(),
+                    row,
+                    column: thr_names[k].clone(),
+                    found: record[c].to_string(),
+                    expected: "a motor command in 0..1".into(),
+                });
+            }
+            rec.thr[k].push(v);
+        }
+        rec.mag_ut.push(vec3(mag_cols)?);
+        for (col, dst) in [
+            (bat_v, &mut rec.bat_v),
+            (bat_a, &mut rec.bat_a),
+            (temp_c, &mut rec.temp_c),
+        ] {
+            if let (Some(c), Some(d)) = (col, dst.as_mut()) {
+                d.push(num(c)?);
+            }
+        }
+        if let Some(imu) = rec.imu.as_mut() {
+            // A missing group is stored as zeros only when its partner exists; `check` keeps lengths equal.
+            imu.acc_mps2.push(match acc {
+                Some(c) => vec3(c)?,
+                None => Vec3::zeros(),
+            });
+            imu.gyr_rps.push(match gyr {
+                Some(c) => vec3(c)?,
+                None => Vec3::zeros(),
+            });
+        }
+        if let (Some([f, d, s]), Some(g)) = (truth, rec.truth.as_mut()) {
+            g.field_ut.push(vec3(f)?);
+            g.dist_ut.push(vec3(d)?);
+            g.sd_ut.push(vec3(s)?);
+        }
+        for (k, &c) in extra_cols.iter().enumerate() {
+            rec.extra[k].1.push(record[c].to_string());
+        }
+    }
+    if row == 0 {
+        return Err(CoreError::TooFewRows {
+            path: path.to_path_buf(),
+            rows: 0,
+            needed: 1,
+            why: "(a recording needs at least one sample)".into(),
+        });
+    }
+    Ok(rec)
+}
+
+/// Header names of a recording, in the order [`write`] puts them.
+pub fn header(rec: &Recording) -> Vec<String> {
+    let mut h = vec!["t_s".to_string()];
+    if rec.overall_only && rec.thr.len() == 1 {
+        h.push("thr".into());
+    } else {
+        h.extend((1..=rec.thr.len()).map(|i| format!("thr_{i}")));
+    }
+    h.extend(AXES.map(|a| format!("mag_{a}_ut")));
+    for (name, present) in [
+        ("bat_v", rec.bat_v.is_some()),
+        ("bat_a", rec.bat_a.is_some()),
+        ("temp_c", rec.temp_c.is_some()),
+    ] {
+        if present {
+            h.push(name.into());
+        }
+    }
+    if rec.imu.is_some() {
+        h.extend(AXES.map(|a| format!("acc_{a}_mps2")));
+        h.extend(AXES.map(|a| format!("gyr_{a}_rps")));
+    }
+    if rec.truth.is_some() {
+        for group in ["true_field", "true_dist", "true_sd"] {
+            h.extend(AXES.map(|a| format!("{group}_{a}_ut")));
+        }
+    }
+    h.extend(rec.extra.iter().map(|(n, _)| n.clone()));
+    h
+}
+
+/// Writes a recording as CSV to any writer.
+pub fn write_to(rec: &Recording, out: impl Write, origin: &Path) -> Result<(), CoreError> {
+    rec.check()?;
+    let mut w = csv::WriterBuilder::new().from_writer(out);
+    let io = |e: csv::Error| CoreError::Csv {
+        path: origin.to_path_buf(),
+        row: 0,
+        message: e.to_string(),
+    };
+    w.write_record(header(rec)).map_err(io)?;
+    let mut cells: Vec<String> = Vec::new();
+    for r in 0..rec.len() {
+        cells.clear();
+        cells.push(format!("{:.6}", rec.t_s[r]));
+        cells.extend(rec.thr.iter().map(|m| format!("{:.6}", m[r])));
+        push3(&mut cells, &rec.mag_ut[r], 4);
+        for c in [&rec.bat_v, &rec.bat_a, &rec.temp_c].into_iter().flatten() {
+            cells.push(format!("{:.4}", c[r]));
+        }
+        if let Some(i) = &rec.imu {
+            push3(&mut cells, &i.acc_mps2[r], 5);
+            push3(&mut cells, &i.gyr_rps[r], 6);
+        }
+        if let Some(g) = &rec.truth {
+            push3(&mut cells, &g.field_ut[r], 4);
+            push3(&mut cells, &g.dist_ut[r], 4);
+            push3(&mut cells, &g.sd_ut[r], 4);
+        }
+        cells.extend(rec.extra.iter().map(|(_, c)| c[r].clone()));
+        w.write_record(&cells).map_err(io)?;
+    }
+    w.flush().map_err(|e| CoreError::io(origin, e))?;
+    Ok(())
+}
+
+fn push3(cells: &mut Vec<String>, v: &Vec3, decimals: usize) {
+    for k in 0..3 {
+        // `+ 0.0` turns -0.0 into 0.0 so that signs of zero never differ between runs.
+        cells.push(format!("{:.*}", decimals, v[k] + 0.0));
+    }
+}
+
+/// Writes a recording to a file atomically: the file appears complete or not at all.
+pub fn write(rec: &Recording, path: impl AsRef<Path>) -> Result<(), CoreError> {
+    let path: PathBuf = path.as_ref().to_path_buf();
+    atomic_file::write_with(&path, |w| write_to(rec, w, &path))
+}
+
+/// Formats a number the way [`write`] formats extra numeric columns (6 decimals, no -0).
+pub fn format_extra(x: f64) -> String {
+    format!("{:.6}", x + 0.0)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const GOOD: &str = "t_s,thr_1,thr_2,mag_x_ut,mag_y_ut,mag_z_ut,bat_v,note\n\
+                        0.0,0.0,0.0,20,1,-45,12.4,a\n\
+                        0.5,0.4,0.6,21,2,-46,12.1,b\n";
+
+    fn err(text: &str) -> String {
+        read_str(text, "r.csv").unwrap_err().to_string()
+    }
+
+    #[test]
+    fn reads_motors_optional_and_extra_columns() {
+        let r = read_str(GOOD, "r.csv").unwrap();
+        assert_eq!(r.motor_count(), 2);
+        assert!(!r.overall_only);
+        assert!((r.overall_throttle(1) - 0.5).abs() < 1e-15);
+        assert_eq!(r.bat_v.as_deref(), Some(&[12.4, 12.1][..]));
+        assert_eq!(
+            r.extra,
+            vec![("note".to_string(), vec!["a".to_string(), "b".to_string()])]
+        );
+    }
+
+    #[test]
+    fn write_then_read_is_identity_at_written_precision() {
+        let r = read_str(GOOD, "r.csv").unwrap();
+        let mut buf = Vec::new();
+        write_to(&r, &mut buf, Path::new("mem")).unwrap();
+        let back = read_str(std::str::from_utf8(&buf).unwrap(), "mem").unwrap();
+        assert_eq!(r, back);
+    }
+
+    #[test]
+    fn missing_column_is_named() {
+        let e = err("t_s,thr,mag_x_ut,mag_y_ut\n0,0,1,2\n");
+        assert!(e.contains("r.csv") && e.contains("mag_z_ut"), "{e}");
+        let e = err("t_s,mag_x_ut,mag_y_ut,mag_z_ut\n0,1,2,3\n");
+        assert!(e.contains("`thr`"), "{e}");
+    }
+
+    #[test]
+    fn nan_and_text_cells_name_row_and_column() {
+        let e = err("t_s,thr,mag_x_ut,mag_y_ut,mag_z_ut\n0,0,1,2,3\n1,0.5,NaN,2,3\n");
+        assert!(
+            e.contains("row 2") && e.contains("mag_x_ut") && e.contains("NaN"),
+            "{e}"
+        );
+        let e = err("t_s,thr,mag_x_ut,mag_y_ut,mag_z_ut\n0,zero,1,2,3\n");
+        assert!(e.contains("row 1") && e.contains("`thr`"), "{e}");
+    }
+
+    #[test]
+    fn time_going_backwards_is_refused() {
+        let e = err("t_s,thr,mag_x_ut,mag_y_ut,mag_z_ut\n1,0,1,2,3\n0.5,0,1,2,3\n");
+        assert!(e.contains("row 2") && e.contains("t_s"), "{e}");
+    }
+
+    #[test]
+    fn throttle_outside_unit_range_is_refused() {
+        let e = err("t_s,thr,mag_x_ut,mag_y_ut,mag_z_ut\n0,1.5,1,2,3\n");
+        assert!(e.contains("0..1") && e.contains("row 1"), "{e}");
+    }
+
+    #[test]
+    fn ragged_rows_and_empty_files_are_refused() {
+        let e = err("t_s,thr,mag_x_ut,mag_y_ut,mag_z_ut\n0,0,1,2\n");
+        assert!(e.contains("row 1") && e.contains("malformed"), "{e}");
+        let e = err("t_s,thr,mag_x_ut,mag_y_ut,mag_z_ut\n");
+        assert!(e.contains("0 data rows"), "{e}");
+        let e = err("t_s,thr,thr,mag_x_ut,mag_y_ut,mag_z_ut\n");
+        assert!(e.contains("more than once"), "{e}");
+    }
+
+    #[test]
+    fn partial_ground_truth_is_refused() {
+        let e = err(
+            "t_s,thr,mag_x_ut,mag_y_ut,mag_z_ut,true_dist_x_ut,true_dist_y_ut,true_dist_z_ut\n0,0,1,2,3,0,0,0\n",
+        );
+        assert!(e.contains("true_field_x_ut"), "{e}");
+    }
+
+    #[test]
+    fn atomic_write_leaves_no_file_on_error() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("out.csv");
+        let mut bad = read_str(GOOD, "r.csv").unwrap();
+        bad.mag_ut.pop();
+        assert!(write(&bad, &path).is_err());
+        assert_eq!(
+            std::fs::read_dir(dir.path()).unwrap().count(),
+            0,
+            "no file, no temporary left"
+        );
+    }
+
+    proptest::proptest! {
+        #[test]
+        fn arbitrary_text_never_panics(s in "(?s).{0,300}") {
+            let _ = read_str(&s, "fuzz.csv");
+        }
+    }
+}
