@@ -1,1 +1,45 @@
-fn main() {}
+//! `magstand`: magnetometer errors caused by motor currents on multirotors.
+//!
+//! Every subcommand is a thin layer over the library crates: it parses arguments, reads and
+//! writes files (atomically, never over an input), shows progress, and prints summaries.
+//! Errors go to stderr with a non-zero exit code.
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+
+mod demo;
+mod files;
+mod progress;
+mod simulate_cmd;
+
+/// Magnetometer disturbance from motor currents: simulate a restrained test stand, identify and
+/// compensate the disturbance.
+#[derive(Parser)]
+#[command(name = "magstand", version, about, propagate_version = true)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Simulate a restrained test-stand run from a scenario file.
+    Simulate(simulate_cmd::SimulateArgs),
+    /// Run the embedded paper-like scenario end to end and print what it shows.
+    Demo(demo::DemoArgs),
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Simulate(a) => simulate_cmd::run(a),
+        Command::Demo(a) => demo::run(a),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}

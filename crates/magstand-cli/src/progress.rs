@@ -1,0 +1,35 @@
+//! Progress bars on stderr (hidden when stderr is not a terminal, so logs and CI stay clean).
+use indicatif::{ProgressBar, ProgressStyle};
+
+/// Shows a bar over simulated seconds.
+pub struct SimulationBar {
+    bar: ProgressBar,
+}
+
+impl SimulationBar {
+    /// A bar labelled `label`.
+    pub fn new(label: &str) -> Self {
+        let bar = ProgressBar::new(1000);
+        bar.set_style(
+            ProgressStyle::with_template("{prefix} [{bar:40}] {percent:>3}% eta {eta}")
+                .expect("constant template")
+                .progress_chars("=> "),
+        );
+        bar.set_prefix(label.to_string());
+        Self { bar }
+    }
+}
+
+impl magstand_sim::Observer for SimulationBar {
+    fn progress(&mut self, done_s: f64, total_s: f64) {
+        if total_s > 0.0 {
+            self.bar.set_position((1000.0 * done_s / total_s) as u64);
+        }
+    }
+}
+
+impl Drop for SimulationBar {
+    fn drop(&mut self) {
+        self.bar.finish_and_clear();
+    }
+}

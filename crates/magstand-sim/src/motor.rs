@@ -1,0 +1,217 @@
+//! ESC and brushless motor with a propeller load.
+//!
+//! The ESC maps a command in 0..1 to a PWM duty: nothing below the start threshold (the paper's
+//! motors started near 37 units of command), then linearly up to full duty. At steady state the
+//! applied voltage balances back-EMF and the resistive drop of the current that the propeller's
+//! drag torque needs:
+//!
+//! `V * duty = Ke * w + R * (I0 + kq * w^2 / Kt)`,   `Kt = Ke = 60 / (2 pi Kv)`
+//!
+//! so current grows with the square of speed, faster than linearly with command, and falls
+//! with the supply voltage. The rotor follows its steady-state speed through a first-order lag
+//! (spin-up), which makes the current, and the field it causes, lag command steps.
+use serde::{Deserialize, Serialize};
+
+use crate::error::{Checker, SimError};
+
+/// Parameters shared by every motor of the stand.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct MotorParams {
+    /// Number of motors (4 for a quad, 6 for a hexa).
+    pub count: usize,
+    /// Distance from the frame centre to each motor, m.
+    pub arm_length_m: f64,
+    /// Command at which the ESC starts driving the motor (dead zone), 0..1.
+    pub dead_zone: f64,
+    /// Motor velocity constant, rpm per volt.
+    pub kv_rpm_per_v: f64,
+    /// Winding plus ESC resistance, ohm.
+    pub winding_resistance_ohm: f64,
+    /// No-load current while spinning, A.
+    pub idle_current_a: f64,
+    /// Propeller drag-torque coefficient kq: torque = kq * w^2, N m s^2.
+    pub torque_coeff_nms2: f64,
+    /// Propeller thrust coefficient kf: thrust = kf * w^2, N s^2.
+    pub thrust_coeff_ns2: f64,
+    /// Spin-up time constant, s.
+    pub spinup_tau_s: f64,
+    /// Rotor imbalance (mass times offset), kg m: a force m r w^2 rotating with the rotor.
+    pub imbalance_kg_m: f64,
+    /// Per-motor scale on the torque coefficient (unequal propellers); empty means all 1.
+    pub load_scale: Vec<f64>,
+}
+
+impl Default for MotorParams {
+    fn default() -> Self {
+        Self {
+            count: 4,
+            arm_length_m: 0.225,
+            dead_zone: 0.37,
+            kv_rpm_per_v: 920.0,
+            winding_resistance_ohm: 0.12,
+            idle_current_a: 0.4,
+            torque_coeff_nms2: 1.95e-7,
+            thrust_coeff_ns2: 1.0e-5,
+            spinup_tau_s: 0.06,
+            imbalance_kg_m: 2.0e-6,
+            load_scale: Vec::new(),
+        }
+    }
+}
+
+impl MotorParams {
+    pub(crate) fn check(&self, c: &Checker) -> Result<(), SimError> {
+        if !(1..=16).contains(&self.count) {
+            return Err(c.fail("motors.count", self.count, "an integer in 1..=16"));
+        }
+        c.positive("motors.arm_length_m", self.arm_length_m)?;
+        c.range("motors.dead_zone", self.dead_zone, 0.0, 0.95)?;
+        c.positive("motors.kv_rpm_per_v", self.kv_rpm_per_v)?;
+        c.positive("motors.winding_resistance_ohm", self.winding_resistance_ohm)?;
+        c.range("motors.idle_current_a", self.idle_current_a, 0.0, 100.0)?;
+        c.positive("motors.torque_coeff_nms2", self.torque_coeff_nms2)?;
+        c.range("motors.thrust_coeff_ns2", self.thrust_coeff_ns2, 0.0, 1.0)?;
+        c.positive("motors.spinup_tau_s", self.spinup_tau_s)?;
+        c.range("motors.imbalance_kg_m", self.imbalance_kg_m, 0.0, 1.0)?;
+        if !self.load_scale.is_empty() && self.load_scale.len() != self.count {
+            return Err(c.fail(
+                "motors.load_scale",
+                format!("{} values", self.load_scale.len()),
+                &format!("one value per motor ({}) or none", self.count),
+            ));
+        }
+        for s in &self.load_scale {
+            c.positive("motors.load_scale", *s)?;
+        }
+        Ok(())
+    }
+
+    /// Torque constant Kt = Ke, N m per A (and V s per rad).
+    pub fn torque_constant(&self) -> f64 {
+        60.0 / (2.0 * std::f64::consts::PI * self.kv_rpm_per_v)
+    }
+
+    /// PWM duty for a command: 0 in the dead zone, then linear to 1 at full command.
+    pub fn duty(&self, command: f64) -> f64 {
+        if command <= self.dead_zone {
+            0.0
+        } else {
+            ((command - self.dead_zone) / (1.0 - self.dead_zone)).min(1.0)
+        }
+    }
+
+    fn kq(&self, motor: usize) -> f64 {
+        self.torque_coeff_nms2 * self.load_scale.get(motor).copied().unwrap_or(1.0)
+    }
+
+    /// Steady-state rotor speed (rad/s) at `duty` and supply `voltage_v`: the positive root of
+    /// `(R kq / Kt) w^2 + Ke w + (R I0 - V duty) = 0`.
+    pub fn steady_speed(&self, motor: usize, duty: f64, voltage_v: f64) -> f64 {
+        let kt = self.torque_constant();
+        let r = self.winding_resistance_ohm;
+        let drive = voltage_v.max(0.0) * duty - r * self.idle_current_a;
+        if duty <= 0.0 || drive <= 0.0 {
+            return 0.0;
+        }
+        let a = r * self.kq(motor) / kt;
+        // Stable form of (-b + sqrt(b^2 + 4 a drive)) / 2a for small a.
+        2.0 * drive / (kt + (kt * kt + 4.0 * a * drive).sqrt())
+    }
+
+    /// Current (A) drawn by a motor spinning at `speed` while driven.
+    pub fn current(&self, motor: usize, speed: f64, driven: bool) -> f64 {
+        if !driven {
+            return 0.0;
+        }
+        self.idle_current_a + self.kq(motor) * speed * speed / self.torque_constant()
+    }
+
+    /// Thrust (N) at `speed`.
+    pub fn thrust(&self, speed: f64) -> f64 {
+        self.thrust_coeff_ns2 * speed * speed
+    }
+
+    /// Propeller drag torque magnitude (N m) at `speed`.
+    pub fn drag_torque(&self, motor: usize, speed: f64) -> f64 {
+        self.kq(motor) * speed * speed
+    }
+}
+
+/// State of one motor: rotor speed and rotor angle (for the imbalance force).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct MotorState {
+    /// Rotor speed, rad/s.
+    pub speed_rad_s: f64,
+    /// Rotor angle, rad.
+    pub angle_rad: f64,
+    /// Current drawn, A.
+    pub current_a: f64,
+}
+
+impl MotorState {
+    /// Advances one motor by `dt_s` under `command` at supply `voltage_v`.
+    pub fn step(&mut self, p: &MotorParams, motor: usize, command: f64, voltage_v: f64, dt_s: f64) {
+        let duty = p.duty(command);
+        let target = p.steady_speed(motor, duty, voltage_v);
+        // Exact discretization of the first-order lag: stable for any dt.
+        let alpha = 1.0 - (-dt_s / p.spinup_tau_s).exp();
+        self.speed_rad_s += (target - self.speed_rad_s) * alpha;
+        self.angle_rad = (self.angle_rad + self.speed_rad_s * dt_s) % std::f64::consts::TAU;
+        self.current_a = p.current(motor, self.speed_rad_s, duty > 0.0);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn dead_zone_gives_no_speed_and_no_current() {
+        let p = MotorParams::default();
+        let mut s = MotorState::default();
+        for _ in 0..1000 {
+            s.step(&p, 0, 0.36, 12.0, 1e-3);
+        }
+        assert_eq!((s.speed_rad_s, s.current_a), (0.0, 0.0));
+    }
+
+    #[test]
+    fn steady_speed_solves_the_voltage_balance() {
+        let p = MotorParams::default();
+        for duty in [0.1, 0.5, 1.0] {
+            let w = p.steady_speed(0, duty, 11.1);
+            let kt = p.torque_constant();
+            let lhs = 11.1 * duty;
+            let rhs = kt * w + p.winding_resistance_ohm * p.current(0, w, true);
+            assert!((lhs - rhs).abs() < 1e-9, "duty {duty}: {lhs} vs {rhs}");
+        }
+    }
+
+    #[test]
+    fn current_is_convex_in_command_and_falls_with_voltage() {
+        let p = MotorParams::default();
+        let i = |c: f64, v: f64| p.current(0, p.steady_speed(0, p.duty(c), v), true);
+        let (lo, mid, hi) = (i(0.5, 11.1), i(0.75, 11.1), i(1.0, 11.1));
+        assert!(mid < 0.5 * (lo + hi), "convex: {lo} {mid} {hi}");
+        assert!(i(1.0, 10.0) < i(1.0, 12.0));
+    }
+
+    #[test]
+    fn spin_up_follows_a_first_order_lag() {
+        let p = MotorParams::default();
+        let mut s = MotorState::default();
+        let target = p.steady_speed(0, p.duty(0.8), 12.0);
+        let dt = 1e-4;
+        let steps = (p.spinup_tau_s / dt).round() as usize;
+        for _ in 0..steps {
+            s.step(&p, 0, 0.8, 12.0, dt);
+        }
+        let frac = s.speed_rad_s / target;
+        let expected = 1.0 - (-1.0f64).exp();
+        assert!(
+            (frac - expected).abs() < 1e-3,
+            "after one tau: {frac} vs {expected}"
+        );
+    }
+}

@@ -1,0 +1,403 @@
+//! Scenario files: every parameter of a simulated test-stand run, in TOML.
+//!
+//! A scenario is read as an unchecked [`Scenario`] (serde rejects unknown keys and wrong
+//! types, naming the key and line), optionally changed by `key=value` overrides, and then
+//! checked into a [`ValidScenario`], the only form the simulator accepts. Checking tests every
+//! value against its allowed range and names the dotted key of the first one that is not.
+use std::path::{Path, PathBuf};
+
+use serde::{Deserialize, Serialize};
+
+use crate::battery::SupplyParams;
+use crate::error::{Checker, SimError};
+use crate::hysteresis::HysteresisParams;
+use crate::magnetometer::MagnetometerParams;
+use crate::motor::MotorParams;
+use crate::noise::NoiseParams;
+use crate::program::{DifferentialParams, ProgramParams};
+use crate::stand::StandParams;
+use crate::thermal::ThermalParams;
+use crate::wiring::WiringParams;
+use magstand_core::Vec3;
+
+/// Where the motor-caused disturbance comes from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum DisturbanceSource {
+    /// Currents through the wiring, by Biot-Savart.
+    #[default]
+    Wiring,
+    /// The paper's identified model (Tables I-III) of the overall throttle command, so that a
+    /// scenario reproduces the paper's curves exactly.
+    PaperTables,
+}
+
+/// `[disturbance]`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct DisturbanceParams {
+    /// Source of the disturbance.
+    pub source: DisturbanceSource,
+    /// Scale applied to the paper-table disturbance (1 reproduces the tables).
+    pub scale: f64,
+}
+
+impl Default for DisturbanceParams {
+    fn default() -> Self {
+        Self {
+            source: DisturbanceSource::Wiring,
+            scale: 1.0,
+        }
+    }
+}
+
+/// `[logging]`: which columns are written and the delay between streams.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct LoggingParams {
+    /// Delay of the magnetometer stream against the command stream, s: each row's field was
+    /// measured this long before the row's time stamp. Off (0) by default.
+    pub mag_delay_s: f64,
+    /// Write `bat_v` and `bat_a`.
+    pub record_power: bool,
+    /// Write `temp_c`.
+    pub record_temp: bool,
+    /// Write the accelerometer and gyro.
+    pub record_imu: bool,
+    /// Write the ground truth columns.
+    pub record_truth: bool,
+}
+
+impl Default for LoggingParams {
+    fn default() -> Self {
+        Self {
+            mag_delay_s: 0.0,
+            record_power: true,
+            record_temp: false,
+            record_imu: false,
+            record_truth: true,
+        }
+    }
+}
+
+fn d_physics() -> f64 {
+    1000.0
+}
+
+/// A scenario as read, not yet checked.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Scenario {
+    /// Short name.
+    pub name: String,
+    /// What the scenario is for.
+    #[serde(default)]
+    pub description: String,
+    /// Seed used when none is given on the command line.
+    #[serde(default)]
+    pub seed: u64,
+    /// Physics rate, Hz.
+    #[serde(default = "d_physics")]
+    pub physics_hz: f64,
+    /// Throttle program.
+    pub program: ProgramParams,
+    /// Attitude-like differential commands on top of the program.
+    #[serde(default)]
+    pub differential: DifferentialParams,
+    /// ESCs and motors.
+    #[serde(default)]
+    pub motors: MotorParams,
+    /// Bench supply or battery.
+    #[serde(default)]
+    pub supply: SupplyParams,
+    /// Conductors near the magnetometer.
+    #[serde(default)]
+    pub wiring: WiringParams,
+    /// Source of the disturbance.
+    #[serde(default)]
+    pub disturbance: DisturbanceParams,
+    /// Noise.
+    #[serde(default)]
+    pub noise: NoiseParams,
+    /// Board heating and offset drift.
+    #[serde(default)]
+    pub thermal: ThermalParams,
+    /// Ferromagnetic hysteresis.
+    #[serde(default)]
+    pub hysteresis: HysteresisParams,
+    /// The sensor.
+    #[serde(default)]
+    pub magnetometer: MagnetometerParams,
+    /// The rigid body and its mount.
+    #[serde(default)]
+    pub stand: StandParams,
+    /// Columns and stream delay.
+    #[serde(default)]
+    pub logging: LoggingParams,
+}
+
+/// A checked scenario, ready to simulate.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ValidScenario {
+    scenario: Scenario,
+    origin: String,
+    replay: Option<(Vec<f64>, Vec<Vec<f64>>)>,
+}
+
+impl ValidScenario {
+    /// The checked parameters.
+    pub fn params(&self) -> &Scenario {
+        &self.scenario
+    }
+
+    /// Where the scenario came from.
+    pub fn origin(&self) -> &str {
+        &self.origin
+    }
+
+    /// Replayed commands (times, per-motor commands), for a replay program.
+    pub fn replay(&self) -> Option<(&[f64], &[Vec<f64>])> {
+        self.replay
+            .as_ref()
+            .map(|(t, c)| (t.as_slice(), c.as_slice()))
+    }
+
+    /// The fully resolved scenario as TOML, so a run can be repeated exactly. A replay
+    /// program's file is written as the absolute path it was loaded from.
+    pub fn to_toml(&self) -> String {
+        toml::to_string(&self.scenario).expect("a checked scenario always serializes")
+    }
+
+    /// Back to an unchecked scenario, e.g. to change a parameter and check again.
+    pub fn into_inner(self) -> Scenario {
+        self.scenario
+    }
+}
+
+fn parse_error(origin: &str, e: impl std::fmt::Display) -> SimError {
+    SimError::Parse {
+        origin: origin.to_string(),
+        message: e.to_string().trim_end().to_string(),
+    }
+}
+
+impl Scenario {
+    /// Parses scenario TOML; `origin` names it in errors.
+    pub fn from_toml_str(text: &str, origin: &str) -> Result<Self, SimError> {
+        toml::from_str(text).map_err(|e| parse_error(origin, e))
+    }
+
+    /// Parses scenario TOML and applies `key=value` overrides (dotted keys, TOML values; a value
+    /// that is not valid TOML is taken as a string).
+    pub fn from_toml_with_overrides(
+        text: &str,
+        origin: &str,
+        overrides: &[String],
+    ) -> Result<Self, SimError> {
+        if overrides.is_empty() {
+            return Self::from_toml_str(text, origin);
+        }
+        let mut table: toml::Table = text.parse().map_err(|e| parse_error(origin, e))?;
+        for o in overrides {
+            apply_override(&mut table, o)?;
+        }
+        let with = format!("{origin} (with --set overrides)");
+        let text = toml::to_string(&table).map_err(|e| parse_error(&with, e))?;
+        Self::from_toml_str(&text, &with)
+    }
+
+    /// Reads a scenario file, applies overrides and checks it. Relative paths inside (a replay
+    /// program's file) are resolved against the file's folder.
+    pub fn load(path: &Path, overrides: &[String]) -> Result<ValidScenario, SimError> {
+        let text = std::fs::read_to_string(path).map_err(|source| SimError::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        let origin = path.display().to_string();
+        let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
+        Self::from_toml_with_overrides(&text, &origin, overrides)?.check(&origin, Some(&base))
+    }
+
+    /// Checks every value and loads what the scenario refers to.
+    pub fn check(
+        mut self,
+        origin: &str,
+        base_dir: Option<&Path>,
+    ) -> Result<ValidScenario, SimError> {
+        let c = Checker { origin };
+        c.range("physics_hz", self.physics_hz, 10.0, 100_000.0)?;
+        self.program.check(&c)?;
+        c.range(
+            "differential.amplitude",
+            self.differential.amplitude,
+            0.0,
+            0.5,
+        )?;
+        c.range(
+            "differential.frequency_hz",
+            self.differential.frequency_hz,
+            0.0,
+            self.physics_hz / 4.0,
+        )?;
+        self.motors.check(&c)?;
+        self.supply.check(&c)?;
+        self.magnetometer.check(&c, self.physics_hz)?;
+        self.wiring.check(
+            &c,
+            self.motors.count,
+            Vec3::from(self.magnetometer.position_m),
+        )?;
+        c.range("disturbance.scale", self.disturbance.scale, -100.0, 100.0)?;
+        self.noise.check(&c)?;
+        self.thermal.check(&c)?;
+        self.hysteresis.check(&c)?;
+        self.stand.check(&c, self.physics_hz)?;
+        c.range("logging.mag_delay_s", self.logging.mag_delay_s, 0.0, 10.0)?;
+        let replay = match &mut self.program {
+            ProgramParams::Replay { file } => {
+                let mut path = PathBuf::from(&*file);
+                if path.is_relative()
+                    && let Some(b) = base_dir
+                {
+                    path = b.join(path);
+                }
+                let rec = magstand_core::recording_csv::read(&path)?;
+                let n = rec.motor_count();
+                if n != 1 && n != self.motors.count {
+                    return Err(c.fail(
+                        "program.file",
+                        format!("{} ({n} motor columns)", path.display()),
+                        &format!("a recording with a single thr column or {} motor columns (motors.count)", self.motors.count),
+                    ));
+                }
+                *file = std::path::absolute(&path)
+                    .unwrap_or(path)
+                    .display()
+                    .to_string();
+                Some((rec.t_s, rec.thr))
+            }
+            _ => None,
+        };
+        Ok(ValidScenario {
+            scenario: self,
+            origin: origin.to_string(),
+            replay,
+        })
+    }
+}
+
+/// Sets `a.b.c = value` in a TOML table.
+fn apply_override(table: &mut toml::Table, text: &str) -> Result<(), SimError> {
+    let fail = |message: &str| SimError::Override {
+        text: text.to_string(),
+        message: message.to_string(),
+    };
+    let (key, raw) = text
+        .split_once('=')
+        .ok_or_else(|| fail("expected key=value"))?;
+    let parts: Vec<&str> = key.trim().split('.').collect();
+    if parts.iter().any(|p| p.is_empty()) {
+        return Err(fail("the key is empty or has an empty part"));
+    }
+    let value = match format!("v = {}", raw.trim()).parse::<toml::Table>() {
+        Ok(mut t) => t.remove("v").expect("just parsed"),
+        Err(_) => toml::Value::String(raw.trim().to_string()),
+    };
+    let mut cur = table;
+    for p in &parts[..parts.len() - 1] {
+        let entry = cur
+            .entry(p.to_string())
+            .or_insert_with(|| toml::Value::Table(toml::Table::new()));
+        cur = entry
+            .as_table_mut()
+            .ok_or_else(|| fail(&format!("`{p}` is not a table")))?;
+    }
+    cur.insert(parts[parts.len() - 1].to_string(), value);
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const MINIMAL: &str = "name = \"t\"\n[program]\nkind = \"stair\"\nsteps = 5\ndwell_s = 2.0\n";
+
+    fn check(text: &str, overrides: &[&str]) -> Result<ValidScenario, SimError> {
+        let o: Vec<String> = overrides.iter().map(|s| s.to_string()).collect();
+        Scenario::from_toml_with_overrides(text, "s.toml", &o)?.check("s.toml", None)
+    }
+
+    #[test]
+    fn minimal_scenario_gets_defaults_and_round_trips() {
+        let v = check(MINIMAL, &[]).unwrap();
+        assert_eq!(v.params().motors.count, 4);
+        let again = Scenario::from_toml_str(&v.to_toml(), "resolved").unwrap();
+        assert_eq!(&again, v.params());
+    }
+
+    #[test]
+    fn unknown_key_is_named() {
+        let e = check(&format!("{MINIMAL}[supply]\nkind = \"battery\"\ncells = 3\ncapacty_ah = 2\ninternal_resistance_ohm = 0.01\n"), &[]).unwrap_err().to_string();
+        assert!(e.contains("capacty_ah"), "{e}");
+    }
+
+    #[test]
+    fn wrong_type_is_named() {
+        let e = check(&format!("{MINIMAL}[motors]\ncount = \"four\"\n"), &[])
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("count"), "{e}");
+    }
+
+    #[test]
+    fn out_of_range_values_name_key_and_range() {
+        let cases = [
+            ("supply.capacity_ah=-1", "supply.capacity_ah"),
+            ("program.max=1.5", "program.max"),
+            ("magnetometer.odr_hz=0", "magnetometer.odr_hz"),
+            ("physics_hz=0", "physics_hz"),
+            ("motors.dead_zone=1.2", "motors.dead_zone"),
+        ];
+        for (o, key) in cases {
+            let e = check(
+                MINIMAL,
+                &[
+                    "supply.kind=\"battery\"",
+                    "supply.cells=3",
+                    "supply.capacity_ah=2",
+                    "supply.internal_resistance_ohm=0.01",
+                    o,
+                ],
+            )
+            .unwrap_err()
+            .to_string();
+            assert!(e.contains(key) && e.contains("expected"), "{o}: {e}");
+        }
+    }
+
+    #[test]
+    fn overrides_change_nested_values_and_reject_nonsense() {
+        let v = check(MINIMAL, &["motors.dead_zone=0.3", "program.steps=7"]).unwrap();
+        assert_eq!(v.params().motors.dead_zone, 0.3);
+        assert!(check(MINIMAL, &["no_equals_sign"]).is_err());
+        assert!(check(MINIMAL, &["name.x=1"]).is_err());
+    }
+
+    #[test]
+    fn a_conductor_through_the_sensor_is_refused() {
+        let text = format!(
+            "{MINIMAL}[[wiring.segment]]\ncarries = \"total\"\nstart_m = [-0.1, 0.0, 0.0]\nend_m = [0.1, 0.0, 0.0]\n"
+        );
+        let e = check(&text, &[]).unwrap_err().to_string();
+        assert!(e.contains("wiring.segment[0]") && e.contains("2 mm"), "{e}");
+    }
+
+    #[test]
+    fn carrier_beyond_the_motor_count_is_refused() {
+        let text = format!(
+            "{MINIMAL}[[wiring.segment]]\ncarries = \"motor5\"\nstart_m = [-0.1, 0.1, 0.0]\nend_m = [0.1, 0.1, 0.0]\n"
+        );
+        let e = check(&text, &[]).unwrap_err().to_string();
+        assert!(e.contains("wiring.segment[0].carries"), "{e}");
+    }
+}
