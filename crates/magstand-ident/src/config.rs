@@ -1,0 +1,402 @@
+//! Fit settings: an unchecked [`FitConfig`] becomes a [`ValidFitConfig`] through
+//! [`FitConfig::check`], and only a valid one can [`Fit`].
+use magstand_core::rbf::RbfPartition;
+use magstand_core::{Recording, Vec3};
+
+use crate::IdentError;
+use crate::baseline;
+use crate::dataset::{Dataset, InputKind};
+use crate::local_linear::{self, Estimation};
+use crate::model::{FitSummary, Model, Structure};
+use crate::noise_model::SdModel;
+use crate::structure;
+
+/// Which model family to fit.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Family {
+    /// RBF-blended local linear models with fixed centres and widths.
+    LocalLinear {
+        /// RBF centres on the normalized input.
+        centers: Vec<f64>,
+        /// Width parameters `eps` (eq. 13), one per centre.
+        widths: Vec<f64>,
+        /// Local or global estimation.
+        estimation: Estimation,
+    },
+    /// Local linear models whose number, centres and widths are chosen from the data.
+    Automatic {
+        /// Largest number of local models.
+        max_models: usize,
+        /// Local or global estimation.
+        estimation: Estimation,
+    },
+    /// ArduPilot compassmot's running average through the origin.
+    ArduPilot,
+    /// PX4's least-squares line, slope only.
+    Px4,
+    /// A cubic with intercept.
+    Cubic,
+}
+
+/// Unchecked fit settings.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FitConfig {
+    /// Model family.
+    pub family: Family,
+    /// Model input.
+    pub input: InputKind,
+    /// Weight rows by the inverse of the fitted noise variance (heteroscedastic least squares).
+    pub weighted: bool,
+    /// Knots of the noise sd model.
+    pub sd_knots: usize,
+}
+
+impl FitConfig {
+    /// The paper's method: 3 local models at 0, 0.5, 1, width 4, local estimation, unweighted.
+    pub fn paper() -> Self {
+        Self::fixed(vec![0.0, 0.5, 1.0], 4.0, Estimation::Local)
+    }
+
+    /// Fixed centres sharing one width.
+    pub fn fixed(centers: Vec<f64>, eps: f64, estimation: Estimation) -> Self {
+        let widths = vec![eps; centers.len()];
+        Self {
+            family: Family::LocalLinear {
+                centers,
+                widths,
+                estimation,
+            },
+            input: InputKind::Throttle,
+            weighted: false,
+            sd_knots: 11,
+        }
+    }
+
+    /// `k` evenly spaced centres on 0..1 with the paper's width-to-spacing ratio (`eps = 2 (k-1)`).
+    pub fn evenly_spaced(k: usize, estimation: Estimation) -> Self {
+        let centers = (0..k)
+            .map(|i| {
+                if k > 1 {
+                    i as f64 / (k - 1) as f64
+                } else {
+                    0.5
+                }
+            })
+            .collect();
+        Self::fixed(centers, (2.0 * (k.max(2) - 1) as f64).max(1.0), estimation)
+    }
+
+    /// Automatic structure with global estimation and inverse-variance weighting.
+    pub fn automatic() -> Self {
+        Self {
+            family: Family::Automatic {
+                max_models: 10,
+                estimation: Estimation::Global,
+            },
+            input: InputKind::Throttle,
+            weighted: true,
+            sd_knots: 11,
+        }
+    }
+
+    /// A baseline family.
+    pub fn baseline(family: Family) -> Self {
+        Self {
+            family,
+            input: InputKind::Throttle,
+            weighted: false,
+            sd_knots: 11,
+        }
+    }
+
+    /// With another input.
+    pub fn with_input(mut self, input: InputKind) -> Self {
+        self.input = input;
+        self
+    }
+
+    /// With or without inverse-variance weighting.
+    pub fn with_weighting(mut self, weighted: bool) -> Self {
+        self.weighted = weighted;
+        self
+    }
+
+    /// Checks every setting.
+    pub fn check(self) -> Result<ValidFitConfig, IdentError> {
+        let bad = |key: &str, value: String, expected: &str| {
+            Err(IdentError::InvalidSetting {
+                key: key.into(),
+                value,
+                expected: expected.into(),
+            })
+        };
+        match &self.family {
+            Family::LocalLinear {
+                centers, widths, ..
+            } => {
+                if centers.is_empty() || centers.len() > 50 {
+                    return bad("rbf", centers.len().to_string(), "1..=50 local models");
+                }
+                if let Some(c) = centers
+                    .iter()
+                    .find(|c| !(c.is_finite() && (-1.0..=2.0).contains(*c)))
+                {
+                    return bad(
+                        "centers",
+                        c.to_string(),
+                        "finite centres in -1..=2 (the input is normalized to 0..1)",
+                    );
+                }
+                if let Some(w) = widths
+                    .iter()
+                    .find(|w| !(w.is_finite() && **w > 0.0 && **w <= 1e4))
+                {
+                    return bad("width", w.to_string(), "a width parameter in (0, 10000]");
+                }
+                if widths.len() != centers.len() {
+                    return bad("width", widths.len().to_string(), "one width per centre");
+                }
+            }
+            Family::Automatic { max_models, .. } => {
+                if !(1..=30).contains(max_models) {
+                    return bad("max-models", max_models.to_string(), "1..=30");
+                }
+            }
+            Family::ArduPilot | Family::Px4 | Family::Cubic => {
+                if self.input == InputKind::Motors {
+                    return bad(
+                        "inputs",
+                        "motors".into(),
+                        "throttle or current for the straight-line and cubic baselines",
+                    );
+                }
+            }
+        }
+        if !(2..=101).contains(&self.sd_knots) {
+            return bad("sd-knots", self.sd_knots.to_string(), "2..=101");
+        }
+        Ok(ValidFitConfig(self))
+    }
+}
+
+/// Checked fit settings.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ValidFitConfig(FitConfig);
+
+/// Something that fits a model to identification data.
+pub trait Fit {
+    /// What the fit returns.
+    type Output;
+    /// Fits.
+    fn fit(&self, data: &Dataset) -> Result<Self::Output, IdentError>;
+}
+
+/// Something that predicts the disturbance at a row of a recording.
+pub trait Predict {
+    /// Predicted disturbance for every row, µT.
+    fn predict(&self, rec: &Recording) -> Vec<Vec3>;
+}
+
+impl Predict for Model {
+    fn predict(&self, rec: &Recording) -> Vec<Vec3> {
+        self.dist_column(rec)
+    }
+}
+
+impl ValidFitConfig {
+    /// The settings.
+    pub fn config(&self) -> &FitConfig {
+        &self.0
+    }
+
+    /// Builds the dataset from a recording and fits.
+    pub fn fit_recording(&self, rec: &Recording, origin: &str) -> Result<Model, IdentError> {
+        self.fit(&Dataset::from_recording(rec, self.0.input, origin)?)
+    }
+
+    fn method_name(&self) -> String {
+        let w = if self.0.weighted { "+weighted" } else { "" };
+        match &self.0.family {
+            Family::LocalLinear {
+                estimation: Estimation::Local,
+                ..
+            } => format!("local{w}"),
+            Family::LocalLinear {
+                estimation: Estimation::Global,
+                ..
+            } => format!("global{w}"),
+            Family::Automatic { estimation, .. } => format!(
+                "auto-{}{w}",
+                if *estimation == Estimation::Local {
+                    "local"
+                } else {
+                    "global"
+                }
+            ),
+            Family::ArduPilot => "ardupilot".into(),
+            Family::Px4 => "px4".into(),
+            Family::Cubic => "cubic".into(),
+        }
+    }
+
+    /// One structure fitted on `rows`, with inverse-variance reweighting when configured.
+    /// Returns the structure and the noise model of its residuals.
+    fn fit_rows(
+        &self,
+        data: &Dataset,
+        rows: &dyn Fn(usize) -> bool,
+        select: &dyn Fn(usize) -> bool,
+    ) -> Result<(Structure, Option<SdModel>), IdentError> {
+        let unit = |_: usize| Vec3::repeat(1.0);
+        let fit_with = |weight: &dyn Fn(usize) -> Vec3| -> Result<Structure, IdentError> {
+            Ok(match &self.0.family {
+                Family::LocalLinear {
+                    centers,
+                    widths,
+                    estimation,
+                } => {
+                    let part = RbfPartition::new(centers.clone(), widths.clone())
+                        .expect("checked in FitConfig::check");
+                    Structure::LocalLinear(local_linear::fit(
+                        data,
+                        &part,
+                        *estimation,
+                        rows,
+                        weight,
+                    )?)
+                }
+                Family::Automatic {
+                    max_models,
+                    estimation,
+                } => {
+                    // Choose on the fitting rows only: fit on some, score on others.
+                    let fit_part = |k: usize| rows(k) && !select(k);
+                    let score_part = |k: usize| rows(k) && select(k);
+                    let part = structure::choose(
+                        data,
+                        *estimation,
+                        *max_models,
+                        &fit_part,
+                        &score_part,
+                        weight,
+                    )?;
+                    Structure::LocalLinear(local_linear::fit(
+                        data,
+                        &part,
+                        *estimation,
+                        rows,
+                        weight,
+                    )?)
+                }
+                Family::ArduPilot => baseline::ardupilot(data, rows)?,
+                Family::Px4 => baseline::polynomial(data, 1, false, rows)?,
+                Family::Cubic => baseline::polynomial(data, 3, true, rows)?,
+            })
+        };
+        let residual_sd = |s: &Structure| {
+            let m = Model::new("", data.spec.clone(), data.reference_ut, s.clone(), None);
+            let r = residuals(&m, data);
+            SdModel::fit(&data.u, &r, rows, self.0.sd_knots)
+        };
+        let mut s = fit_with(&unit)?;
+        let mut sd = residual_sd(&s);
+        let is_local_linear = matches!(
+            self.0.family,
+            Family::LocalLinear { .. } | Family::Automatic { .. }
+        );
+        if self.0.weighted && is_local_linear {
+            // Two reweighting passes: the second noise model comes from residuals of a fit that
+            // no longer over-follows the noisiest samples.
+            for _ in 0..2 {
+                let Some(noise) = sd.clone() else { break };
+                let w = |k: usize| noise.sd(data.u[k]).map(|s| 1.0 / (s * s));
+                s = fit_with(&w)?;
+                sd = residual_sd(&s);
+            }
+        }
+        Ok((s, sd))
+    }
+}
+
+/// Residuals `y - model output` (with the model output taken relative to motors-off, as `y` is).
+pub fn residuals(m: &Model, data: &Dataset) -> Vec<Vec3> {
+    let mut s = m.scratch();
+    let off = m.off_output(&mut s);
+    let mut phi = vec![0.0; s_phi_len(m)];
+    (0..data.len())
+        .map(|k| data.y[k] - (m.output(data.u[k], data.regressors(k), &mut phi) - off))
+        .collect()
+}
+
+fn s_phi_len(m: &Model) -> usize {
+    match &m.structure {
+        Structure::LocalLinear(n) => n.partition.len(),
+        Structure::Polynomial { .. } => 0,
+    }
+}
+
+impl Fit for ValidFitConfig {
+    type Output = Model;
+
+    fn fit(&self, data: &Dataset) -> Result<Model, IdentError> {
+        let holdout = data.holdout_mask();
+        let t0 = data.t_s[0];
+        let span = data.t_s[data.len() - 1] - t0;
+        let block = (span / 50.0).clamp(1e-6, 1.0);
+        // Structure selection scores on its own blocks, never on the held-out ones.
+        let select = |k: usize| ((data.t_s[k] - t0) / block).floor() as u64 % 5 == 3;
+        let train = |k: usize| !holdout[k];
+        let (s_train, _) = self.fit_rows(data, &train, &select)?;
+        let train_model = Model::new("", data.spec.clone(), data.reference_ut, s_train, None);
+        let r_train = residuals(&train_model, data);
+        let (structure, sd) = self.fit_rows(data, &|_| true, &select)?;
+        let mut model = Model::new(
+            &self.method_name(),
+            data.spec.clone(),
+            data.reference_ut,
+            structure,
+            sd,
+        );
+        let r = residuals(&model, data);
+        let holdout_rows = holdout.iter().filter(|h| **h).count();
+        let rms = |rows: &mut dyn Iterator<Item = Vec3>, n: usize| -> [f64; 3] {
+            let s = rows.fold(Vec3::zeros(), |acc, v| acc + v.component_mul(&v));
+            [0, 1, 2].map(|a| (s[a] / n.max(1) as f64).sqrt())
+        };
+        let rmse_ut = rms(&mut r.iter().copied(), r.len());
+        let holdout_rmse_ut = rms(
+            &mut r_train
+                .iter()
+                .zip(&holdout)
+                .filter(|(_, h)| **h)
+                .map(|(v, _)| *v),
+            holdout_rows,
+        );
+        let mean = data.y.iter().sum::<Vec3>() / data.len() as f64;
+        let var = data.y.iter().fold(Vec3::zeros(), |acc, y| {
+            acc + (y - mean).component_mul(&(y - mean))
+        }) / data.len() as f64;
+        let r2 = [0, 1, 2].map(|a| {
+            if var[a] > 0.0 {
+                1.0 - rmse_ut[a].powi(2) / var[a]
+            } else {
+                0.0
+            }
+        });
+        let terms = match &model.structure {
+            Structure::LocalLinear(n) => n.partition.len(),
+            Structure::Polynomial { coefficients } => {
+                coefficients[0].iter().filter(|c| **c != 0.0).count()
+            }
+        };
+        model.summary = Some(FitSummary {
+            rows: data.len(),
+            holdout_rows,
+            rmse_ut,
+            r2,
+            holdout_rmse_ut,
+            terms,
+        });
+        Ok(model)
+    }
+}

@@ -1,0 +1,250 @@
+//! From a recording to identification data: the scheduling input, the regressors of the local
+//! models, and the deviation from the motors-off reading (eq. 9).
+use serde::{Deserialize, Serialize};
+
+use crate::IdentError;
+use magstand_core::{Recording, Vec3};
+
+/// What drives the model.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum InputKind {
+    /// The overall throttle (mean motor command), as in the paper.
+    Throttle,
+    /// Each motor's command as a separate regressor, scheduled on the overall throttle.
+    Motors,
+    /// The supply current `bat_a`.
+    Current,
+}
+
+impl std::str::FromStr for InputKind {
+    type Err = IdentError;
+    fn from_str(s: &str) -> Result<Self, IdentError> {
+        match s {
+            "throttle" => Ok(InputKind::Throttle),
+            "motors" => Ok(InputKind::Motors),
+            "current" => Ok(InputKind::Current),
+            _ => Err(IdentError::InvalidSetting {
+                key: "inputs".into(),
+                value: s.into(),
+                expected: "throttle, motors or current".into(),
+            }),
+        }
+    }
+}
+
+/// The model's input: which signal, how it is normalized to 0..1 (the paper normalizes its
+/// input; the scaling is stored with the model and undone on use), and its motors-off value.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct InputSpec {
+    /// Which signal.
+    pub kind: InputKind,
+    /// Raw value mapped to 0.
+    pub lo: f64,
+    /// Raw value mapped to 1.
+    pub hi: f64,
+    /// Motor count of the recordings the model applies to.
+    pub motors: usize,
+    /// Raw input with the motors off (0 for commands; the avionics current for `current`).
+    pub off_raw: f64,
+}
+
+impl InputSpec {
+    /// Normalized scheduling value of a raw input.
+    pub fn normalize(&self, raw: f64) -> f64 {
+        (raw - self.lo) / (self.hi - self.lo)
+    }
+
+    /// Raw scheduling input at a row.
+    pub fn raw(&self, rec: &Recording, row: usize) -> f64 {
+        match self.kind {
+            InputKind::Throttle | InputKind::Motors => rec.overall_throttle(row),
+            InputKind::Current => rec.bat_a.as_ref().map(|a| a[row]).unwrap_or(f64::NAN),
+        }
+    }
+
+    /// Number of regressors of each local model (inputs plus the intercept).
+    pub fn regressor_count(&self) -> usize {
+        match self.kind {
+            InputKind::Motors => self.motors + 1,
+            _ => 2,
+        }
+    }
+
+    /// Regressors at a row: `[u, 1]`, or `[thr_1 .. thr_N, 1]` for per-motor inputs.
+    pub fn regressors(&self, rec: &Recording, row: usize, out: &mut [f64]) {
+        match self.kind {
+            InputKind::Motors => {
+                for (m, o) in out.iter_mut().take(self.motors).enumerate() {
+                    *o = rec.thr[m][row];
+                }
+            }
+            _ => out[0] = self.normalize(self.raw(rec, row)),
+        }
+        out[out.len() - 1] = 1.0;
+    }
+
+    /// Regressors with the motors off.
+    pub fn off_regressors(&self, out: &mut [f64]) {
+        out.fill(0.0);
+        if self.kind != InputKind::Motors {
+            out[0] = self.normalize(self.off_raw);
+        }
+        out[out.len() - 1] = 1.0;
+    }
+
+    /// Checks that a recording can feed this input.
+    pub fn check_recording(&self, rec: &Recording, origin: &str) -> Result<(), IdentError> {
+        if self.kind == InputKind::Current && rec.bat_a.is_none() {
+            return Err(IdentError::Data { origin: origin.into(), message: "the model's input is the supply current, but the recording has no `bat_a` column".into() });
+        }
+        if self.kind == InputKind::Motors && rec.motor_count() != self.motors {
+            return Err(IdentError::Data {
+                origin: origin.into(),
+                message: format!(
+                    "the model has per-motor inputs for {} motors, the recording has {} motor columns",
+                    self.motors,
+                    rec.motor_count()
+                ),
+            });
+        }
+        Ok(())
+    }
+}
+
+/// Rows used for identification, with their inputs and eq. 9 deviations.
+#[derive(Debug, Clone)]
+pub struct Dataset {
+    /// Where the data came from (for error messages).
+    pub origin: String,
+    /// The input specification.
+    pub spec: InputSpec,
+    /// Normalized scheduling input per row.
+    pub u: Vec<f64>,
+    /// Regressors, row-major, [`InputSpec::regressor_count`] per row.
+    pub x: Vec<f64>,
+    /// Deviation from the motors-off reference per row (eq. 9), µT.
+    pub y: Vec<Vec3>,
+    /// Time per row, s.
+    pub t_s: Vec<f64>,
+    /// The motors-off reference reading, µT.
+    pub reference_ut: Vec3,
+    /// Rows with all motors off.
+    pub off_rows: usize,
+}
+
+/// A row counts as motors-off when every command is at most this.
+pub const OFF_COMMAND: f64 = 1e-6;
+
+/// Minimum rows a fit accepts.
+pub const MIN_ROWS: usize = 20;
+
+impl Dataset {
+    /// Builds identification data from a recording.
+    pub fn from_recording(
+        rec: &Recording,
+        kind: InputKind,
+        origin: &str,
+    ) -> Result<Self, IdentError> {
+        let data_err = |message: String| IdentError::Data {
+            origin: origin.into(),
+            message,
+        };
+        rec.check()?;
+        if rec.len() < MIN_ROWS {
+            return Err(data_err(format!(
+                "{} rows; a fit needs at least {MIN_ROWS}",
+                rec.len()
+            )));
+        }
+        if kind == InputKind::Motors && rec.overall_only {
+            return Err(data_err("per-motor inputs need thr_1..thr_N columns; the recording has only the overall `thr`".into()));
+        }
+        let off: Vec<usize> = (0..rec.len())
+            .filter(|&r| rec.thr.iter().all(|m| m[r] <= OFF_COMMAND))
+            .collect();
+        if off.is_empty() {
+            return Err(data_err("no motors-off rows (every thr = 0) to take the eq. 9 reference from; record a few seconds with the motors off".into()));
+        }
+        let reference_ut = off.iter().map(|&r| rec.mag_ut[r]).sum::<Vec3>() / off.len() as f64;
+        let (lo, hi, off_raw) = match kind {
+            InputKind::Throttle | InputKind::Motors => (0.0, 1.0, 0.0),
+            InputKind::Current => {
+                let a = rec.bat_a.as_ref().ok_or_else(|| {
+                    data_err(
+                        "`--inputs current` needs a `bat_a` column; the recording has none".into(),
+                    )
+                })?;
+                let off_a = off.iter().map(|&r| a[r]).sum::<f64>() / off.len() as f64;
+                let max = a.iter().cloned().fold(f64::NEG_INFINITY, f64::max);
+                (0.0, if max > 0.0 { max } else { 1.0 }, off_a)
+            }
+        };
+        let spec = InputSpec {
+            kind,
+            lo,
+            hi,
+            motors: rec.motor_count(),
+            off_raw,
+        };
+        let p = spec.regressor_count();
+        let mut x = vec![0.0; rec.len() * p];
+        let mut u = Vec::with_capacity(rec.len());
+        for r in 0..rec.len() {
+            spec.regressors(rec, r, &mut x[r * p..(r + 1) * p]);
+            u.push(spec.normalize(spec.raw(rec, r)));
+        }
+        let (umin, umax) = u
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
+                (a.min(v), b.max(v))
+            });
+        if umax - umin < 1e-9 {
+            return Err(IdentError::Singular {
+                origin: origin.into(),
+                what: "disturbance model".into(),
+                why: format!(
+                    "the input never varies (always {umin:.4}); record the motors over a range of throttle"
+                ),
+            });
+        }
+        Ok(Dataset {
+            origin: origin.into(),
+            spec,
+            u,
+            x,
+            y: rec.mag_ut.iter().map(|m| m - reference_ut).collect(),
+            t_s: rec.t_s.clone(),
+            reference_ut,
+            off_rows: off.len(),
+        })
+    }
+
+    /// Number of rows.
+    pub fn len(&self) -> usize {
+        self.u.len()
+    }
+
+    /// True when there are no rows.
+    pub fn is_empty(&self) -> bool {
+        self.u.is_empty()
+    }
+
+    /// Regressors of a row.
+    pub fn regressors(&self, row: usize) -> &[f64] {
+        let p = self.spec.regressor_count();
+        &self.x[row * p..(row + 1) * p]
+    }
+
+    /// Splits rows into identification and held-out sets by time blocks: every fifth block of
+    /// `block_s` seconds is held out, so that held-out samples are not neighbours of fitted ones.
+    pub fn holdout_mask(&self) -> Vec<bool> {
+        let t0 = self.t_s[0];
+        let span = self.t_s[self.len() - 1] - t0;
+        let block = (span / 50.0).clamp(1e-6, 1.0);
+        self.t_s
+            .iter()
+            .map(|t| ((t - t0) / block).floor() as u64 % 5 == 4)
+            .collect()
+    }
+}

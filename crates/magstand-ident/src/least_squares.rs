@@ -1,0 +1,229 @@
+//! Weighted linear least squares by accumulated normal equations and a Cholesky solve.
+//!
+//! One pass over the data accumulates `X^T W X` and `X^T W y`, so a million samples cost a few
+//! multiply-adds each and no large matrix is ever formed. The normal matrix is equilibrated
+//! (scaled to a unit diagonal) before the Cholesky factorization, and the fit is refused when
+//! its reciprocal condition estimate is too small to trust: degenerate data gives an error,
+//! never NaN. No matrix is ever inverted.
+use nalgebra::{DMatrix, DVector};
+
+/// Smallest acceptable reciprocal condition estimate of the equilibrated normal matrix
+/// (squared pivot ratio of its Cholesky factor). Below it, the coefficients are not determined
+/// to even a few significant digits.
+pub const MIN_RCOND: f64 = 1e-13;
+
+/// Accumulator of weighted normal equations for `outputs` right-hand sides sharing one
+/// regressor matrix and one weight per row.
+#[derive(Debug, Clone)]
+pub struct NormalEquations {
+    xtx: DMatrix<f64>,
+    xty: DMatrix<f64>,
+    weight_sum: f64,
+    rows: usize,
+}
+
+/// Why a solve failed.
+#[derive(Debug, Clone, PartialEq)]
+pub enum SolveError {
+    /// No rows with positive weight.
+    NoData,
+    /// The regressors are (nearly) linearly dependent on the weighted data; the index is the
+    /// first regressor found dependent on the ones before it.
+    Singular {
+        /// Index of the first dependent regressor.
+        column: usize,
+        /// Reciprocal condition estimate.
+        rcond: f64,
+    },
+}
+
+impl NormalEquations {
+    /// An empty accumulator for `params` regressors and `outputs` right-hand sides.
+    pub fn new(params: usize, outputs: usize) -> Self {
+        Self {
+            xtx: DMatrix::zeros(params, params),
+            xty: DMatrix::zeros(params, outputs),
+            weight_sum: 0.0,
+            rows: 0,
+        }
+    }
+
+    /// Adds one row `x` with outputs `y` and weight `w` (rows with `w <= 0` are skipped).
+    #[inline]
+    pub fn add(&mut self, x: &[f64], y: &[f64], w: f64) {
+        if w <= 0.0 {
+            return;
+        }
+        let p = x.len();
+        for i in 0..p {
+            let wxi = w * x[i];
+            if wxi == 0.0 {
+                continue;
+            }
+            // Upper triangle only; mirrored in `solve`.
+            for j in i..p {
+                self.xtx[(i, j)] += wxi * x[j];
+            }
+            for (k, yk) in y.iter().enumerate() {
+                self.xty[(i, k)] += wxi * yk;
+            }
+        }
+        self.weight_sum += w;
+        self.rows += 1;
+    }
+
+    /// Adds another accumulator's sums (for parallel or chunked accumulation).
+    pub fn merge(&mut self, other: &NormalEquations) {
+        self.xtx += &other.xtx;
+        self.xty += &other.xty;
+        self.weight_sum += other.weight_sum;
+        self.rows += other.rows;
+    }
+
+    /// Number of rows added with positive weight.
+    pub fn rows(&self) -> usize {
+        self.rows
+    }
+
+    /// Solves for the coefficients: one column per output.
+    pub fn solve(&self) -> Result<DMatrix<f64>, SolveError> {
+        let p = self.xtx.nrows();
+        if self.rows == 0 || self.weight_sum <= 0.0 {
+            return Err(SolveError::NoData);
+        }
+        let mut a = self.xtx.clone();
+        for i in 0..p {
+            for j in 0..i {
+                a[(i, j)] = a[(j, i)];
+            }
+        }
+        // Equilibrate: D^-1/2 A D^-1/2 has a unit diagonal, so the pivot test below is scale-free.
+        let scale: DVector<f64> = DVector::from_fn(p, |i, _| {
+            let d = a[(i, i)];
+            if d > 0.0 { 1.0 / d.sqrt() } else { 0.0 }
+        });
+        if let Some(col) = (0..p).find(|&i| scale[i] == 0.0) {
+            return Err(SolveError::Singular {
+                column: col,
+                rcond: 0.0,
+            });
+        }
+        for i in 0..p {
+            for j in 0..p {
+                a[(i, j)] *= scale[i] * scale[j];
+            }
+        }
+        let chol = nalgebra::Cholesky::new(a.clone()).ok_or_else(|| SolveError::Singular {
+            column: first_dependent(&a),
+            rcond: 0.0,
+        })?;
+        let l = chol.l_dirty();
+        let diag: Vec<f64> = (0..p).map(|i| l[(i, i)].abs()).collect();
+        let (lo, hi) = diag.iter().fold((f64::INFINITY, 0.0f64), |(lo, hi), &d| {
+            (lo.min(d), hi.max(d))
+        });
+        let rcond = (lo / hi).powi(2);
+        if !(rcond >= MIN_RCOND) {
+            let column = diag.iter().position(|&d| d == lo).unwrap_or(0);
+            return Err(SolveError::Singular { column, rcond });
+        }
+        let mut b = self.xty.clone();
+        for i in 0..p {
+            for k in 0..b.ncols() {
+                b[(i, k)] *= scale[i];
+            }
+        }
+        let mut theta = chol.solve(&b);
+        for i in 0..p {
+            for k in 0..theta.ncols() {
+                theta[(i, k)] *= scale[i];
+            }
+        }
+        if theta.iter().all(|v| v.is_finite()) {
+            Ok(theta)
+        } else {
+            Err(SolveError::Singular { column: 0, rcond })
+        }
+    }
+}
+
+/// Index of the first column of `a` whose pivot collapses in an unpivoted elimination.
+fn first_dependent(a: &DMatrix<f64>) -> usize {
+    let p = a.nrows();
+    let mut m = a.clone();
+    for k in 0..p {
+        if m[(k, k)] <= 1e-12 {
+            return k;
+        }
+        for i in k + 1..p {
+            let f = m[(i, k)] / m[(k, k)];
+            for j in k..p {
+                m[(i, j)] -= f * m[(k, j)];
+            }
+        }
+    }
+    p.saturating_sub(1)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn recovers_an_exact_line() {
+        let mut ne = NormalEquations::new(2, 1);
+        for k in 0..100 {
+            let x = k as f64 / 99.0;
+            ne.add(&[x, 1.0], &[3.0 * x - 2.0], 1.0);
+        }
+        let th = ne.solve().unwrap();
+        assert!(
+            (th[(0, 0)] - 3.0).abs() < 1e-12 && (th[(1, 0)] + 2.0).abs() < 1e-12,
+            "{th}"
+        );
+    }
+
+    #[test]
+    fn weights_matter() {
+        // Two clusters disagree; the heavier one wins in proportion.
+        let mut ne = NormalEquations::new(1, 1);
+        ne.add(&[1.0], &[0.0], 1.0);
+        ne.add(&[1.0], &[4.0], 3.0);
+        assert!((ne.solve().unwrap()[(0, 0)] - 3.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn constant_input_is_singular_not_nan() {
+        let mut ne = NormalEquations::new(2, 1);
+        for k in 0..50 {
+            ne.add(&[0.5, 1.0], &[k as f64], 1.0);
+        }
+        assert!(
+            matches!(ne.solve(), Err(SolveError::Singular { .. })),
+            "{:?}",
+            ne.solve()
+        );
+    }
+
+    #[test]
+    fn empty_is_an_error() {
+        assert_eq!(
+            NormalEquations::new(2, 1).solve().unwrap_err(),
+            SolveError::NoData
+        );
+    }
+
+    #[test]
+    fn badly_scaled_but_independent_columns_still_solve() {
+        let mut ne = NormalEquations::new(2, 1);
+        for k in 0..200 {
+            let x = k as f64 * 1e-6;
+            ne.add(&[x, 1e6], &[5.0 * x + 7.0], 1.0);
+        }
+        let th = ne.solve().unwrap();
+        assert!(
+            (th[(0, 0)] - 5.0).abs() < 1e-6 && (th[(1, 0)] - 7e-6).abs() < 1e-15,
+            "{th}"
+        );
+    }
+}

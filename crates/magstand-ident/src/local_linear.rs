@@ -1,0 +1,154 @@
+//! RBF-blended local linear models (eq. 10-14) and their two estimators.
+//!
+//! * Local estimation (eq. 15-19), the paper's: one weighted least squares per local model with
+//!   weights `Q_i = diag(phi_i)`. Each local line is fitted to the data it is responsible for,
+//!   so when the data come from a model of exactly this form it does *not* return that model's
+//!   parameters (it fits each line to the blended curve around its centre).
+//! * Global estimation: all local models in one least squares over the regressors
+//!   `[phi_1 x, ..., phi_M x]`, which does return them.
+//!
+//! Both accept per-row, per-axis weights (inverse noise variances for the heteroscedastic fit).
+use nalgebra::DMatrix;
+use serde::{Deserialize, Serialize};
+
+use crate::IdentError;
+use crate::dataset::Dataset;
+use crate::least_squares::{NormalEquations, SolveError};
+use magstand_core::Vec3;
+use magstand_core::rbf::RbfPartition;
+
+/// Local or global estimation.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Estimation {
+    /// One weighted least squares per local model (the paper's eq. 16).
+    Local,
+    /// All local models in one least squares.
+    Global,
+}
+
+/// A fitted local linear network for the three axes.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct LocalLinearNet {
+    /// The RBF partition of the normalized input (shared by the axes).
+    pub partition: RbfPartition,
+    /// `coefficients[axis][model]`: the local model's coefficients over the regressors
+    /// (`[a_i, b_i]` for one input: slope per normalized input unit and intercept, µT).
+    pub coefficients: [Vec<Vec<f64>>; 3],
+}
+
+impl LocalLinearNet {
+    /// Output per axis at normalized input `u` and regressors `x` (eq. 12).
+    pub fn eval(&self, u: f64, x: &[f64], phi: &mut [f64]) -> Vec3 {
+        self.partition.weights_into(u, phi);
+        Vec3::from_fn(|a, _| {
+            self.coefficients[a]
+                .iter()
+                .zip(phi.iter())
+                .map(|(theta, w)| w * theta.iter().zip(x).map(|(t, xi)| t * xi).sum::<f64>())
+                .sum()
+        })
+    }
+}
+
+pub(crate) fn singular(data: &Dataset, what: &str, e: SolveError) -> IdentError {
+    let why = match e {
+        SolveError::NoData => "no rows carry weight".to_string(),
+        SolveError::Singular { column, rcond } => {
+            let regs = data.spec.regressor_count();
+            let (model, reg) = (column / regs, column % regs);
+            let name = match data.spec.kind {
+                crate::InputKind::Motors if reg < regs - 1 => format!("thr_{}", reg + 1),
+                _ if reg == regs - 1 => "intercept".to_string(),
+                _ => "input".to_string(),
+            };
+            format!(
+                "regressor `{name}` of local model {} is not independent of the others on this data (reciprocal condition {rcond:.1e}); \
+                 the input does not vary enough where that model is responsible, or per-motor commands never differ",
+                model + 1
+            )
+        }
+    };
+    IdentError::Singular {
+        origin: data.origin.clone(),
+        what: what.into(),
+        why,
+    }
+}
+
+/// Fits the network on the rows where `use_row` is true, weighting row `k` on axis `a` by
+/// `weight(k)[a]`.
+pub fn fit(
+    data: &Dataset,
+    partition: &RbfPartition,
+    estimation: Estimation,
+    use_row: &dyn Fn(usize) -> bool,
+    weight: &dyn Fn(usize) -> Vec3,
+) -> Result<LocalLinearNet, IdentError> {
+    let m = partition.len();
+    let p = data.spec.regressor_count();
+    let mut phi = vec![0.0; m];
+    let coefficients = match estimation {
+        Estimation::Local => {
+            let mut ne: Vec<[NormalEquations; 3]> = (0..m)
+                .map(|_| std::array::from_fn(|_| NormalEquations::new(p, 1)))
+                .collect();
+            for k in 0..data.len() {
+                if !use_row(k) {
+                    continue;
+                }
+                partition.weights_into(data.u[k], &mut phi);
+                let (x, y, w) = (data.regressors(k), data.y[k], weight(k));
+                for i in 0..m {
+                    for a in 0..3 {
+                        ne[i][a].add(x, &[y[a]], phi[i] * w[a]);
+                    }
+                }
+            }
+            let mut out: [Vec<Vec<f64>>; 3] = Default::default();
+            for (i, per_axis) in ne.iter().enumerate() {
+                for a in 0..3 {
+                    let th = per_axis[a]
+                        .solve()
+                        .map_err(|e| singular(data, &format!("local model {}", i + 1), e))?;
+                    out[a].push(th.column(0).iter().copied().collect());
+                }
+            }
+            out
+        }
+        Estimation::Global => {
+            let mut ne: [NormalEquations; 3] =
+                std::array::from_fn(|_| NormalEquations::new(m * p, 1));
+            let mut z = vec![0.0; m * p];
+            for k in 0..data.len() {
+                if !use_row(k) {
+                    continue;
+                }
+                partition.weights_into(data.u[k], &mut phi);
+                let (x, y, w) = (data.regressors(k), data.y[k], weight(k));
+                for i in 0..m {
+                    for j in 0..p {
+                        z[i * p + j] = phi[i] * x[j];
+                    }
+                }
+                for a in 0..3 {
+                    ne[a].add(&z, &[y[a]], w[a]);
+                }
+            }
+            let mut out: [Vec<Vec<f64>>; 3] = Default::default();
+            for a in 0..3 {
+                let th: DMatrix<f64> = ne[a]
+                    .solve()
+                    .map_err(|e| singular(data, "global local-linear model", e))?;
+                out[a] = (0..m)
+                    .map(|i| (0..p).map(|j| th[(i * p + j, 0)]).collect())
+                    .collect();
+            }
+            out
+        }
+    };
+    Ok(LocalLinearNet {
+        partition: partition.clone(),
+        coefficients,
+    })
+}

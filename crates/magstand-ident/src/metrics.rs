@@ -1,0 +1,251 @@
+//! How good a compensation is: eq. 9 deviations, eq. 20 error in percent of the field norm,
+//! apparent heading error, ArduPilot-style interference, and errors against ground truth.
+use serde::Serialize;
+
+use crate::dataset::OFF_COMMAND;
+use crate::model::Model;
+use magstand_core::{Recording, Vec3};
+
+/// Magnetic heading in degrees (0..360) of a body-frame field, tilt-compensated with the
+/// accelerometer's specific force when given (eq. 2-3 roll and pitch), level otherwise.
+pub fn heading_deg(mag: Vec3, acc: Option<Vec3>) -> f64 {
+    let (bx, by) = match acc {
+        Some(f) if f.norm() > 1.0 => {
+            // At rest the accelerometer reads -g along body z: roll and pitch from its direction.
+            let roll = (-f.y).atan2(-f.z);
+            let pitch = (f.x).atan2((f.y * f.y + f.z * f.z).sqrt());
+            let (sr, cr, sp, cp) = (roll.sin(), roll.cos(), pitch.sin(), pitch.cos());
+            (
+                mag.x * cp + mag.y * sr * sp + mag.z * cr * sp,
+                mag.y * cr - mag.z * sr,
+            )
+        }
+        _ => (mag.x, mag.y),
+    };
+    (-by).atan2(bx).to_degrees().rem_euclid(360.0)
+}
+
+/// Difference of two headings wrapped to -180..180 degrees.
+pub fn heading_difference_deg(a: f64, b: f64) -> f64 {
+    (a - b + 180.0).rem_euclid(360.0) - 180.0
+}
+
+/// Figures at one throttle level.
+#[derive(Debug, Clone, Serialize)]
+pub struct LevelRow {
+    /// Overall throttle (level or bin centre).
+    pub throttle: f64,
+    /// Samples.
+    pub samples: usize,
+    /// Mean deviation from the motors-off reading (eq. 9), µT.
+    pub dmag_ut: [f64; 3],
+    /// Mean predicted disturbance, µT.
+    pub model_ut: [f64; 3],
+    /// Mean eq. 20 error after compensation, % of the field norm.
+    pub e20_pct: [f64; 3],
+    /// Mean absolute apparent heading error before compensation, degrees.
+    pub heading_before_deg: f64,
+    /// Mean absolute apparent heading error after compensation, degrees.
+    pub heading_after_deg: f64,
+}
+
+/// A model judged on a recording.
+#[derive(Debug, Clone, Serialize)]
+pub struct Evaluation {
+    /// Per throttle level (stair levels, or 0.05-wide bins for continuous throttle).
+    pub levels: Vec<LevelRow>,
+    /// RMSE of the predicted against the true disturbance, per axis, µT (simulations only).
+    pub truth_rmse_ut: Option<[f64; 3]>,
+    /// RMSE of the uncompensated disturbance (the error with no compensation), µT.
+    pub truth_rms_dist_ut: Option<[f64; 3]>,
+    /// RMS of eq. 20 over rows with the motors running, % of the field norm, per axis.
+    pub e20_rms_pct: [f64; 3],
+    /// Worst mean apparent heading error over levels before compensation, degrees.
+    pub heading_before_max_deg: f64,
+    /// Worst mean apparent heading error over levels after compensation, degrees.
+    pub heading_after_max_deg: f64,
+    /// ArduPilot-style interference: the largest mean field change over levels in % of the
+    /// motors-off field norm, before compensation.
+    pub interference_before_pct: f64,
+    /// The same after compensation.
+    pub interference_after_pct: f64,
+}
+
+/// Groups rows by throttle: exact levels when there are at most 60 distinct ones, else bins.
+fn level_of(rec: &Recording) -> (Vec<f64>, Vec<usize>) {
+    let thr = rec.overall_throttle_column();
+    let mut distinct: Vec<f64> = thr.iter().map(|t| (t * 1e4).round() / 1e4).collect();
+    distinct.sort_by(f64::total_cmp);
+    distinct.dedup();
+    if distinct.len() <= 60 {
+        let idx = thr
+            .iter()
+            .map(|t| distinct.partition_point(|d| *d < (t * 1e4).round() / 1e4))
+            .collect();
+        (distinct, idx)
+    } else {
+        let centres = (0..20).map(|k| 0.025 + 0.05 * k as f64).collect();
+        (
+            centres,
+            thr.iter()
+                .map(|t| ((t / 0.05).floor() as usize).min(19))
+                .collect(),
+        )
+    }
+}
+
+impl Evaluation {
+    /// Evaluates `model` on `rec`. The eq. 9 reference is the recording's own motors-off mean
+    /// when it has motors-off rows (as the paper does for each series), else the model's.
+    pub fn new(model: &Model, rec: &Recording) -> Self {
+        let n = rec.len();
+        let off_rows: Vec<usize> = (0..n)
+            .filter(|&r| rec.thr.iter().all(|m| m[r] <= OFF_COMMAND))
+            .collect();
+        let reference = if off_rows.is_empty() {
+            Vec3::from(model.reference_ut)
+        } else {
+            off_rows.iter().map(|&r| rec.mag_ut[r]).sum::<Vec3>() / off_rows.len() as f64
+        };
+        let acc = |r: usize| rec.imu.as_ref().map(|i| i.acc_mps2[r]);
+        let ref_heading = if off_rows.is_empty() {
+            heading_deg(reference, None)
+        } else {
+            // Circular mean of the motors-off headings.
+            let (s, c) = off_rows
+                .iter()
+                .map(|&r| heading_deg(rec.mag_ut[r], acc(r)).to_radians())
+                .fold((0.0, 0.0), |(s, c), h| (s + h.sin(), c + h.cos()));
+            s.atan2(c).to_degrees().rem_euclid(360.0)
+        };
+        let dist = model.dist_column(rec);
+        let (centres, idx) = level_of(rec);
+        let mut sums = vec![
+            (
+                0usize,
+                Vec3::zeros(),
+                Vec3::zeros(),
+                Vec3::zeros(),
+                0.0,
+                0.0
+            );
+            centres.len()
+        ];
+        let mut e20_sq = Vec3::zeros();
+        let mut running = 0usize;
+        for r in 0..n {
+            let dmag = rec.mag_ut[r] - reference;
+            let norm = rec.mag_ut[r].norm().max(1e-9);
+            let e20 = (dmag - dist[r]) / norm * 100.0;
+            let hb = heading_difference_deg(heading_deg(rec.mag_ut[r], acc(r)), ref_heading).abs();
+            let ha =
+                heading_difference_deg(heading_deg(rec.mag_ut[r] - dist[r], acc(r)), ref_heading)
+                    .abs();
+            let s = &mut sums[idx[r]];
+            s.0 += 1;
+            s.1 += dmag;
+            s.2 += dist[r];
+            s.3 += e20;
+            s.4 += hb;
+            s.5 += ha;
+            if rec.thr.iter().any(|m| m[r] > OFF_COMMAND) {
+                e20_sq += e20.component_mul(&e20);
+                running += 1;
+            }
+        }
+        let levels: Vec<LevelRow> = centres
+            .iter()
+            .zip(&sums)
+            .filter(|(_, s)| s.0 > 0)
+            .map(|(&throttle, s)| {
+                let k = s.0 as f64;
+                LevelRow {
+                    throttle,
+                    samples: s.0,
+                    dmag_ut: (s.1 / k).into(),
+                    model_ut: (s.2 / k).into(),
+                    e20_pct: (s.3 / k).into(),
+                    heading_before_deg: s.4 / k,
+                    heading_after_deg: s.5 / k,
+                }
+            })
+            .collect();
+        let ref_norm = reference.norm().max(1e-9);
+        let interference_before_pct = levels
+            .iter()
+            .map(|l| Vec3::from(l.dmag_ut).norm())
+            .fold(0.0, f64::max)
+            / ref_norm
+            * 100.0;
+        let interference_after_pct = levels
+            .iter()
+            .map(|l| (Vec3::from(l.dmag_ut) - Vec3::from(l.model_ut)).norm())
+            .fold(0.0, f64::max)
+            / ref_norm
+            * 100.0;
+        let (truth_rmse_ut, truth_rms_dist_ut) = match &rec.truth {
+            Some(t) => {
+                let mut e = Vec3::zeros();
+                let mut d = Vec3::zeros();
+                for r in 0..n {
+                    let err = dist[r] - t.dist_ut[r];
+                    e += err.component_mul(&err);
+                    d += t.dist_ut[r].component_mul(&t.dist_ut[r]);
+                }
+                let f = |v: Vec3| [0, 1, 2].map(|a| (v[a] / n as f64).sqrt());
+                (Some(f(e)), Some(f(d)))
+            }
+            None => (None, None),
+        };
+        Evaluation {
+            e20_rms_pct: [0, 1, 2].map(|a| (e20_sq[a] / running.max(1) as f64).sqrt()),
+            heading_before_max_deg: levels
+                .iter()
+                .map(|l| l.heading_before_deg)
+                .fold(0.0, f64::max),
+            heading_after_max_deg: levels
+                .iter()
+                .map(|l| l.heading_after_deg)
+                .fold(0.0, f64::max),
+            interference_before_pct,
+            interference_after_pct,
+            truth_rmse_ut,
+            truth_rms_dist_ut,
+            levels,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn heading_of_a_level_field() {
+        // Field pointing along body x: heading 0. Along body -y (field to the left): nose is 90° east.
+        assert!((heading_deg(Vec3::new(20.0, 0.0, 40.0), None) - 0.0).abs() < 1e-12);
+        assert!((heading_deg(Vec3::new(0.0, -20.0, 40.0), None) - 90.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn tilt_compensation_undoes_a_roll() {
+        use nalgebra::UnitQuaternion;
+        let ned = Vec3::new(19.5, 1.9, 46.0);
+        let yaw = 30f64.to_radians();
+        let q = UnitQuaternion::from_euler_angles(0.2, -0.1, yaw);
+        let mag = q.inverse() * ned;
+        let acc = q.inverse() * Vec3::new(0.0, 0.0, -9.81);
+        let expected = (yaw.to_degrees() - 1.9f64.atan2(19.5).to_degrees()).rem_euclid(360.0);
+        assert!(
+            (heading_deg(mag, Some(acc)) - expected).abs() < 1e-9,
+            "{} vs {expected}",
+            heading_deg(mag, Some(acc))
+        );
+    }
+
+    #[test]
+    fn heading_difference_wraps() {
+        assert_eq!(heading_difference_deg(350.0, 10.0), -20.0);
+        assert_eq!(heading_difference_deg(10.0, 350.0), 20.0);
+    }
+}

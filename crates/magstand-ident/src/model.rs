@@ -1,0 +1,304 @@
+//! The fitted model, its versioned JSON file, prediction and compensation.
+//!
+//! # Model file (`M.json`, format `magstand-model`, version 1)
+//!
+//! ```text
+//! {
+//!   "format": "magstand-model", "version": 1,
+//!   "method": "global+weighted",          // how it was fitted (informational)
+//!   "input": {"kind": "throttle"|"motors"|"current", "lo": 0, "hi": 1, "motors": 4, "off_raw": 0},
+//!   "reference_ut": [x, y, z],            // eq. 9 motors-off reading of the identification data
+//!   "structure": {"kind": "local_linear", "partition": {"centers": [...], "widths": [...]},
+//!                 "coefficients": [[[a, b], ...], [...], [...]]}     // per axis, per local model
+//!              | {"kind": "polynomial", "coefficients": [[c0, c1, ...], [...], [...]]},
+//!   "sd": {"knots": [...], "sd_ut": [[...], [...], [...]]} | null,   // noise sd per axis
+//!   "summary": {...} | null
+//! }
+//! ```
+//! The input is normalized, `u = (raw - lo) / (hi - lo)`; local coefficients are in µT per unit of
+//! normalized input (slopes) and µT (intercepts). The predicted disturbance is the model output
+//! minus its output with the motors off, so it is exactly zero with the motors off (eq. 9).
+use std::path::Path;
+
+use serde::{Deserialize, Serialize};
+
+use crate::IdentError;
+use crate::dataset::InputSpec;
+use crate::local_linear::LocalLinearNet;
+use crate::noise_model::SdModel;
+use magstand_core::recording_csv::format_extra;
+use magstand_core::{AXES, Recording, Vec3, atomic_file};
+
+/// Format name in every model file.
+pub const FORMAT: &str = "magstand-model";
+/// Current model file version.
+pub const VERSION: u32 = 1;
+
+/// The functional form of a model.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case")]
+pub enum Structure {
+    /// RBF-blended local linear models.
+    LocalLinear(LocalLinearNet),
+    /// A polynomial `sum_k c_k u^k` of the normalized input per axis (the autopilots' lines and
+    /// a cubic).
+    Polynomial {
+        /// `coefficients[axis][k]`, µT per unit of `u^k`.
+        coefficients: [Vec<f64>; 3],
+    },
+}
+
+/// Fit statistics stored with a model.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct FitSummary {
+    /// Rows used.
+    pub rows: usize,
+    /// Rows held out of the fit that gave `holdout_rmse_ut`.
+    pub holdout_rows: usize,
+    /// RMSE of the fit on all rows, per axis, µT.
+    pub rmse_ut: [f64; 3],
+    /// Coefficient of determination on all rows, per axis.
+    pub r2: [f64; 3],
+    /// RMSE on held-out time blocks of a fit that did not see them, per axis, µT.
+    pub holdout_rmse_ut: [f64; 3],
+    /// Number of local models (or polynomial terms).
+    pub terms: usize,
+}
+
+/// A fitted disturbance model.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Model {
+    /// Always [`FORMAT`].
+    pub format: String,
+    /// File version.
+    pub version: u32,
+    /// How it was fitted.
+    pub method: String,
+    /// The input and its normalization.
+    pub input: InputSpec,
+    /// Motors-off reference of the identification data, µT.
+    pub reference_ut: [f64; 3],
+    /// The functional form.
+    pub structure: Structure,
+    /// Noise standard deviation against the normalized input.
+    pub sd: Option<SdModel>,
+    /// Fit statistics.
+    pub summary: Option<FitSummary>,
+}
+
+/// Scratch space for repeated predictions.
+pub struct Scratch {
+    x: Vec<f64>,
+    phi: Vec<f64>,
+}
+
+impl Model {
+    /// Builds a model from its parts.
+    pub fn new(
+        method: &str,
+        input: InputSpec,
+        reference_ut: Vec3,
+        structure: Structure,
+        sd: Option<SdModel>,
+    ) -> Self {
+        Self {
+            format: FORMAT.into(),
+            version: VERSION,
+            method: method.into(),
+            input,
+            reference_ut: reference_ut.into(),
+            structure,
+            sd,
+            summary: None,
+        }
+    }
+
+    /// Scratch buffers sized for this model.
+    pub fn scratch(&self) -> Scratch {
+        let m = match &self.structure {
+            Structure::LocalLinear(n) => n.partition.len(),
+            Structure::Polynomial { .. } => 0,
+        };
+        Scratch {
+            x: vec![0.0; self.input.regressor_count()],
+            phi: vec![0.0; m],
+        }
+    }
+
+    /// Raw model output at normalized input `u` and regressors `x`.
+    pub fn output(&self, u: f64, x: &[f64], phi: &mut [f64]) -> Vec3 {
+        match &self.structure {
+            Structure::LocalLinear(net) => net.eval(u, x, phi),
+            Structure::Polynomial { coefficients } => {
+                Vec3::from_fn(|a, _| coefficients[a].iter().rev().fold(0.0, |acc, c| acc * u + c))
+            }
+        }
+    }
+
+    /// Model output with the motors off.
+    pub fn off_output(&self, s: &mut Scratch) -> Vec3 {
+        self.input.off_regressors(&mut s.x);
+        let u = self.input.normalize(self.input.off_raw);
+        self.output(u, &s.x, &mut s.phi)
+    }
+
+    /// Predicted disturbance at a row of a recording: zero with the motors off.
+    pub fn dist(&self, rec: &Recording, row: usize, off: Vec3, s: &mut Scratch) -> Vec3 {
+        self.input.regressors(rec, row, &mut s.x);
+        let u = self.input.normalize(self.input.raw(rec, row));
+        self.output(u, &s.x, &mut s.phi) - off
+    }
+
+    /// Predicted noise standard deviation at a row (zero if the model has no noise model).
+    pub fn sd_at(&self, rec: &Recording, row: usize) -> Vec3 {
+        match &self.sd {
+            Some(m) => m.sd(self.input.normalize(self.input.raw(rec, row))),
+            None => Vec3::zeros(),
+        }
+    }
+
+    /// Predicted disturbance for every row.
+    pub fn dist_column(&self, rec: &Recording) -> Vec<Vec3> {
+        let mut s = self.scratch();
+        let off = self.off_output(&mut s);
+        (0..rec.len())
+            .map(|r| self.dist(rec, r, off, &mut s))
+            .collect()
+    }
+
+    /// The recording with the predicted disturbance removed from `mag_*_ut`, and the columns
+    /// `dist_{x,y,z}_ut` (predicted disturbance) and `sd_{x,y,z}_ut` (predicted noise sd) added
+    /// (replacing any of those names already present).
+    pub fn compensate(&self, rec: &Recording, origin: &str) -> Result<Recording, IdentError> {
+        rec.check()?;
+        self.input.check_recording(rec, origin)?;
+        let dist = self.dist_column(rec);
+        let mut out = rec.clone();
+        for (m, d) in out.mag_ut.iter_mut().zip(&dist) {
+            *m -= d;
+        }
+        let names: Vec<String> = ["dist", "sd"]
+            .iter()
+            .flat_map(|g| AXES.iter().map(move |a| format!("{g}_{a}_ut")))
+            .collect();
+        out.extra.retain(|(n, _)| !names.contains(n));
+        for a in 0..3 {
+            out.extra.push((
+                names[a].clone(),
+                dist.iter().map(|d| format_extra(d[a])).collect(),
+            ));
+        }
+        for a in 0..3 {
+            out.extra.push((
+                names[3 + a].clone(),
+                (0..rec.len())
+                    .map(|r| format_extra(self.sd_at(rec, r)[a]))
+                    .collect(),
+            ));
+        }
+        Ok(out)
+    }
+
+    /// Writes the model as pretty JSON, atomically.
+    pub fn save(&self, path: &Path) -> Result<(), IdentError> {
+        let text = serde_json::to_string_pretty(self).expect("a model always serializes") + "\n";
+        atomic_file::write_bytes(path, text.as_bytes())?;
+        Ok(())
+    }
+
+    /// Reads a model file and checks its format, version and consistency.
+    pub fn load(path: &Path) -> Result<Self, IdentError> {
+        let origin = path.display().to_string();
+        let text = std::fs::read_to_string(path).map_err(|e| IdentError::ModelFile {
+            origin: origin.clone(),
+            message: e.to_string(),
+        })?;
+        Self::from_json(&text, &origin)
+    }
+
+    /// Parses a model from JSON text.
+    pub fn from_json(text: &str, origin: &str) -> Result<Self, IdentError> {
+        let err = |message: String| IdentError::ModelFile {
+            origin: origin.into(),
+            message,
+        };
+        let v: serde_json::Value =
+            serde_json::from_str(text).map_err(|e| err(format!("not JSON: {e}")))?;
+        if v.get("format").and_then(|f| f.as_str()) != Some(FORMAT) {
+            return Err(err(format!(
+                "not a magstand model (expected \"format\": \"{FORMAT}\")"
+            )));
+        }
+        match v.get("version").and_then(|f| f.as_u64()) {
+            Some(1) => {}
+            other => {
+                return Err(err(format!(
+                    "model version {other:?} is not supported (this magstand reads version {VERSION})"
+                )));
+            }
+        }
+        let m: Model =
+            serde_json::from_value(v).map_err(|e| err(format!("malformed model: {e}")))?;
+        m.validate().map_err(err)?;
+        Ok(m)
+    }
+
+    fn validate(&self) -> Result<(), String> {
+        let i = &self.input;
+        if !(i.lo.is_finite() && i.hi.is_finite() && i.hi > i.lo) {
+            return Err(format!(
+                "input range lo={} hi={} must be finite with hi > lo",
+                i.lo, i.hi
+            ));
+        }
+        if i.motors == 0 {
+            return Err("input.motors must be at least 1".into());
+        }
+        let p = i.regressor_count();
+        match &self.structure {
+            Structure::LocalLinear(net) => {
+                let part = &net.partition;
+                if magstand_core::rbf::RbfPartition::new(
+                    part.centers().to_vec(),
+                    part.widths().to_vec(),
+                )
+                .is_none()
+                {
+                    return Err(
+                        "partition needs as many finite centres as positive finite widths".into(),
+                    );
+                }
+                for (a, per_axis) in net.coefficients.iter().enumerate() {
+                    if per_axis.len() != net.partition.len()
+                        || per_axis
+                            .iter()
+                            .any(|c| c.len() != p || c.iter().any(|v| !v.is_finite()))
+                    {
+                        return Err(format!(
+                            "axis {}: expected {} local models of {p} finite coefficients",
+                            AXES[a],
+                            net.partition.len()
+                        ));
+                    }
+                }
+            }
+            Structure::Polynomial { coefficients } => {
+                if coefficients
+                    .iter()
+                    .any(|c| c.is_empty() || c.iter().any(|v| !v.is_finite()))
+                {
+                    return Err("polynomial coefficients must be non-empty and finite".into());
+                }
+            }
+        }
+        if let Some(sd) = &self.sd
+            && (sd.knots.len() < 2
+                || sd.sd_ut.iter().any(|s| {
+                    s.len() != sd.knots.len() || s.iter().any(|v| !(v.is_finite() && *v >= 0.0))
+                }))
+        {
+            return Err("sd model needs at least two knots and one finite non-negative sd per knot and axis".into());
+        }
+        Ok(())
+    }
+}
