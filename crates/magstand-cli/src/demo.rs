@@ -1,12 +1,18 @@
-//! `magstand demo`: the embedded paper-like scenario end to end.
+//! `magstand demo`: the embedded paper-like scenario end to end. Simulate an identification
+//! stair and a separate validation stair (going down, another seed), fit the autopilots'
+//! lines, the paper's model and magstand's, compensate the validation run, and print the
+//! before/after table.
 use std::path::PathBuf;
 
 use anyhow::Result;
 use clap::Args;
 
+use crate::fit_cmd::print_summary;
 use crate::progress::SimulationBar;
 use crate::simulate_cmd::load_scenario;
-use magstand_core::recording_csv;
+use magstand_core::{Vec3, recording_csv};
+use magstand_ident::metrics::Evaluation;
+use magstand_ident::{Estimation, Family, FitConfig};
 
 /// Arguments of `magstand demo`.
 #[derive(Args)]
@@ -14,54 +20,116 @@ pub struct DemoArgs {
     /// Folder for the demo's files.
     #[arg(long, default_value = "magstand-demo")]
     out: PathBuf,
-    /// Random seed.
+    /// Random seed of the identification run (validation uses seed + 1).
     #[arg(long, default_value_t = 3)]
     seed: u64,
 }
 
+/// The methods the demo compares, in the order printed.
+pub fn compared_methods() -> Vec<(&'static str, FitConfig)> {
+    vec![
+        (
+            "ArduPilot compassmot (line, running avg)",
+            FitConfig::baseline(Family::ArduPilot),
+        ),
+        ("PX4 (least-squares line)", FitConfig::baseline(Family::Px4)),
+        ("cubic", FitConfig::baseline(Family::Cubic)),
+        ("paper: 3 RBF, local estimation", FitConfig::paper()),
+        (
+            "3 RBF, global estimation",
+            FitConfig::fixed(vec![0.0, 0.5, 1.0], 4.0, Estimation::Global),
+        ),
+        (
+            "3 RBF, global, inverse-variance",
+            FitConfig::fixed(vec![0.0, 0.5, 1.0], 4.0, Estimation::Global).with_weighting(true),
+        ),
+        ("magstand: automatic structure", FitConfig::automatic()),
+        (
+            "magstand: automatic, current input",
+            FitConfig::automatic().with_input(magstand_ident::InputKind::Current),
+        ),
+    ]
+}
+
 /// Runs the demo.
 pub fn run(a: DemoArgs) -> Result<()> {
-    let scenario = load_scenario("builtin:czyba2015-stair", &[])?;
     crate::files::ensure_dir(&a.out)?;
-    let rec =
-        magstand_sim::simulate_observed(&scenario, a.seed, &mut SimulationBar::new("simulate"));
-    let path = a.out.join("recording.csv");
-    recording_csv::write(&rec, &path)?;
-    let truth = rec
-        .truth
-        .as_ref()
-        .expect("the demo scenario records ground truth");
-    println!(
-        "Simulated {} ({} samples) -> {}",
-        scenario.params().name,
-        rec.len(),
-        path.display()
+    let ident_s = load_scenario("builtin:czyba2015-stair", &[])?;
+    let valid_s = load_scenario(
+        "builtin:czyba2015-stair",
+        &["program.direction=\"down\"".into()],
+    )?;
+    let ident = magstand_sim::simulate_observed(
+        &ident_s,
+        a.seed,
+        &mut SimulationBar::new("identification run"),
     );
-    println!(
-        "{:>8} {:>10} {:>10} {:>10} {:>10} {:>8}",
-        "throttle", "dist_x_ut", "dist_y_ut", "dist_z_ut", "|dist|_ut", "sd_ut"
+    let valid = magstand_sim::simulate_observed(
+        &valid_s,
+        a.seed + 1,
+        &mut SimulationBar::new("validation run"),
     );
-    for level in [0.0, 0.2, 0.4, 0.6, 0.8, 1.0] {
-        let rows: Vec<usize> = (0..rec.len())
-            .filter(|&r| (rec.overall_throttle(r) - level).abs() < 1e-9)
-            .collect();
-        if rows.is_empty() {
-            continue;
+    let ident_path = a.out.join("identification.csv");
+    let valid_path = a.out.join("validation.csv");
+    recording_csv::write(&ident, &ident_path)?;
+    recording_csv::write(&valid, &valid_path)?;
+    println!(
+        "Simulated {}: identification stair up ({} samples), validation stair down ({} samples)\n",
+        ident_s.params().name,
+        ident.len(),
+        valid.len()
+    );
+
+    let mut best = None;
+    let mut table = Vec::new();
+    for (name, cfg) in compared_methods() {
+        let model = cfg
+            .check()?
+            .fit_recording(&ident, &ident_path.display().to_string())?;
+        let ev = Evaluation::new(&model, &valid);
+        let rmse = Vec3::from(ev.truth_rmse_ut.expect("simulated validation has truth")).norm();
+        table.push((name, rmse, ev));
+        if name == "magstand: automatic structure" {
+            best = Some(model);
         }
-        let n = rows.len() as f64;
-        let mean = rows
-            .iter()
-            .map(|&r| truth.dist_ut[r])
-            .sum::<magstand_core::Vec3>()
-            / n;
-        let sd = rows.iter().map(|&r| truth.sd_ut[r].x).sum::<f64>() / n;
+    }
+    let model = best.expect("the automatic method is in the list");
+    print_summary(&model);
+    let model_path = a.out.join("model.json");
+    model.save(&model_path)?;
+    let comp_path = a.out.join("validation-compensated.csv");
+    recording_csv::write(
+        &model.compensate(&valid, &valid_path.display().to_string())?,
+        &comp_path,
+    )?;
+
+    let none = table[0]
+        .2
+        .truth_rms_dist_ut
+        .map(|d| Vec3::from(d).norm())
+        .unwrap_or(f64::NAN);
+    println!("\nOn the validation run (ground truth known):");
+    println!(
+        "{:<42} {:>14} {:>16} {:>12}",
+        "method", "dist_rmse_ut", "worst_heading_deg", "eq20_rms_%"
+    );
+    println!(
+        "{:<42} {:>14.3} {:>16.2} {:>12}",
+        "no compensation", none, table[0].2.heading_before_max_deg, ""
+    );
+    for (name, rmse, ev) in &table {
+        let e20 = Vec3::from(ev.e20_rms_pct).norm();
         println!(
-            "{level:>8.2} {:>10.2} {:>10.2} {:>10.2} {:>10.2} {sd:>8.2}",
-            mean.x,
-            mean.y,
-            mean.z,
-            mean.norm()
+            "{name:<42} {rmse:>14.3} {:>16.2} {e20:>12.3}",
+            ev.heading_after_max_deg
         );
     }
+    println!(
+        "\nwrote {}, {}, {} and {}",
+        ident_path.display(),
+        valid_path.display(),
+        model_path.display(),
+        comp_path.display()
+    );
     Ok(())
 }

@@ -7,8 +7,10 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
+mod compensate_cmd;
 mod demo;
 mod files;
+mod fit_cmd;
 mod progress;
 mod simulate_cmd;
 
@@ -25,6 +27,10 @@ struct Cli {
 enum Command {
     /// Simulate a restrained test-stand run from a scenario file.
     Simulate(simulate_cmd::SimulateArgs),
+    /// Identify the motor disturbance of a recording and write the model.
+    Fit(fit_cmd::FitArgs),
+    /// Remove a model's predicted disturbance from a recording.
+    Compensate(compensate_cmd::CompensateArgs),
     /// Run the embedded paper-like scenario end to end and print what it shows.
     Demo(demo::DemoArgs),
 }
@@ -33,6 +39,8 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Simulate(a) => simulate_cmd::run(a),
+        Command::Fit(a) => fit_cmd::run(a),
+        Command::Compensate(a) => compensate_cmd::run(a),
         Command::Demo(a) => demo::run(a),
     };
     match result {

@@ -43,9 +43,9 @@ pub struct LevelRow {
     pub model_ut: [f64; 3],
     /// Mean eq. 20 error after compensation, % of the field norm.
     pub e20_pct: [f64; 3],
-    /// Mean absolute apparent heading error before compensation, degrees.
+    /// Apparent heading error of the level's mean field before compensation, degrees.
     pub heading_before_deg: f64,
-    /// Mean absolute apparent heading error after compensation, degrees.
+    /// Apparent heading error of the level's mean field after compensation, degrees.
     pub heading_after_deg: f64,
 }
 
@@ -107,7 +107,18 @@ impl Evaluation {
         } else {
             off_rows.iter().map(|&r| rec.mag_ut[r]).sum::<Vec3>() / off_rows.len() as f64
         };
-        let acc = |r: usize| rec.imu.as_ref().map(|i| i.acc_mps2[r]);
+        // The stand is restrained: its tilt is the mean specific force over the motors-off rows
+        // (or all rows). A per-sample accelerometer reading carries rotor vibration of several
+        // m/s^2, which would swing a tilt-compensated heading by tens of degrees.
+        let mean_acc = rec.imu.as_ref().map(|i| {
+            let rows: Vec<usize> = if off_rows.is_empty() {
+                (0..n).collect()
+            } else {
+                off_rows.clone()
+            };
+            rows.iter().map(|&r| i.acc_mps2[r]).sum::<Vec3>() / rows.len() as f64
+        });
+        let acc = |_: usize| mean_acc;
         let ref_heading = if off_rows.is_empty() {
             heading_deg(reference, None)
         } else {
@@ -120,34 +131,18 @@ impl Evaluation {
         };
         let dist = model.dist_column(rec);
         let (centres, idx) = level_of(rec);
-        let mut sums = vec![
-            (
-                0usize,
-                Vec3::zeros(),
-                Vec3::zeros(),
-                Vec3::zeros(),
-                0.0,
-                0.0
-            );
-            centres.len()
-        ];
+        let mut sums = vec![(0usize, Vec3::zeros(), Vec3::zeros(), Vec3::zeros()); centres.len()];
         let mut e20_sq = Vec3::zeros();
         let mut running = 0usize;
         for r in 0..n {
             let dmag = rec.mag_ut[r] - reference;
             let norm = rec.mag_ut[r].norm().max(1e-9);
             let e20 = (dmag - dist[r]) / norm * 100.0;
-            let hb = heading_difference_deg(heading_deg(rec.mag_ut[r], acc(r)), ref_heading).abs();
-            let ha =
-                heading_difference_deg(heading_deg(rec.mag_ut[r] - dist[r], acc(r)), ref_heading)
-                    .abs();
             let s = &mut sums[idx[r]];
             s.0 += 1;
             s.1 += dmag;
             s.2 += dist[r];
             s.3 += e20;
-            s.4 += hb;
-            s.5 += ha;
             if rec.thr.iter().any(|m| m[r] > OFF_COMMAND) {
                 e20_sq += e20.component_mul(&e20);
                 running += 1;
@@ -165,8 +160,17 @@ impl Evaluation {
                     dmag_ut: (s.1 / k).into(),
                     model_ut: (s.2 / k).into(),
                     e20_pct: (s.3 / k).into(),
-                    heading_before_deg: s.4 / k,
-                    heading_after_deg: s.5 / k,
+                    // Heading of the level's mean field: the bias a pilot sees, without the noise.
+                    heading_before_deg: heading_difference_deg(
+                        heading_deg(reference + s.1 / k, acc(0)),
+                        ref_heading,
+                    )
+                    .abs(),
+                    heading_after_deg: heading_difference_deg(
+                        heading_deg(reference + (s.1 - s.2) / k, acc(0)),
+                        ref_heading,
+                    )
+                    .abs(),
                 }
             })
             .collect();

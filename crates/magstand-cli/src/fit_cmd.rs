@@ -1,0 +1,202 @@
+//! `magstand fit`.
+use std::path::PathBuf;
+
+use anyhow::{Context, Result, bail};
+use clap::{Args, ValueEnum};
+
+use crate::files;
+use magstand_core::{AXES, recording_csv};
+use magstand_ident::{Estimation, Family, FitConfig, InputKind, Model, Structure};
+
+/// Estimation method on the command line.
+#[derive(Clone, Copy, ValueEnum)]
+pub enum EstimationArg {
+    /// One weighted least squares per local model (the paper's).
+    Local,
+    /// All local models in one least squares.
+    Global,
+}
+
+/// Model family on the command line.
+#[derive(Clone, Copy, ValueEnum)]
+pub enum MethodArg {
+    /// RBF-blended local linear models (structure flags, or automatic without them).
+    LocalLinear,
+    /// ArduPilot compassmot's running average through the origin.
+    Ardupilot,
+    /// PX4's least-squares line (slope only).
+    Px4,
+    /// A cubic with intercept.
+    Cubic,
+}
+
+/// Input on the command line.
+#[derive(Clone, Copy, ValueEnum)]
+pub enum InputArg {
+    /// Overall throttle (mean motor command).
+    Throttle,
+    /// Each motor's command.
+    Motors,
+    /// Supply current `bat_a`.
+    Current,
+}
+
+/// Weighting on the command line.
+#[derive(Clone, Copy, ValueEnum)]
+pub enum WeightingArg {
+    /// Ordinary least squares (the paper's).
+    None,
+    /// Inverse of the fitted, input-dependent noise variance.
+    InverseVariance,
+}
+
+/// Arguments of `magstand fit`.
+#[derive(Args)]
+pub struct FitArgs {
+    /// Recording CSV.
+    #[arg(long)]
+    recording: PathBuf,
+    /// Where to write the model (JSON).
+    #[arg(long = "model-out")]
+    model_out: PathBuf,
+    /// Model family.
+    #[arg(long, value_enum, default_value = "local-linear")]
+    method: MethodArg,
+    /// Number of local models, evenly spaced on 0..1 (width 2(K-1) unless --width).
+    #[arg(long)]
+    rbf: Option<usize>,
+    /// RBF centres on the normalized input, comma-separated.
+    #[arg(long, value_delimiter = ',')]
+    centers: Option<Vec<f64>>,
+    /// RBF width parameter eps (eq. 13).
+    #[arg(long)]
+    width: Option<f64>,
+    /// Local (the paper's) or global estimation. Default: local with structure flags, global
+    /// for the automatic structure.
+    #[arg(long, value_enum)]
+    estimation: Option<EstimationArg>,
+    /// Model input.
+    #[arg(long, value_enum, default_value = "throttle")]
+    inputs: InputArg,
+    /// Row weighting. Default: none with structure flags (the paper's), inverse-variance for
+    /// the automatic structure.
+    #[arg(long, value_enum)]
+    weighting: Option<WeightingArg>,
+    /// Largest number of local models for the automatic structure.
+    #[arg(long = "max-models", default_value_t = 10)]
+    max_models: usize,
+}
+
+/// The fit settings the arguments describe.
+fn config(a: &FitArgs) -> Result<FitConfig> {
+    let structure_flags = a.rbf.is_some() || a.centers.is_some() || a.width.is_some();
+    let estimation = a.estimation.map(|e| match e {
+        EstimationArg::Local => Estimation::Local,
+        EstimationArg::Global => Estimation::Global,
+    });
+    let mut cfg = match a.method {
+        MethodArg::LocalLinear if structure_flags => {
+            let est = estimation.unwrap_or(Estimation::Local);
+            let centers = match (&a.centers, a.rbf) {
+                (Some(c), Some(k)) if c.len() != k => {
+                    bail!("--rbf {k} but {} --centers given", c.len())
+                }
+                (Some(c), _) => c.clone(),
+                (None, Some(k)) => (0..k)
+                    .map(|i| {
+                        if k > 1 {
+                            i as f64 / (k - 1) as f64
+                        } else {
+                            0.5
+                        }
+                    })
+                    .collect(),
+                (None, None) => vec![0.0, 0.5, 1.0],
+            };
+            let eps = a.width.unwrap_or(2.0 * (centers.len().max(2) - 1) as f64);
+            FitConfig::fixed(centers, eps, est).with_weighting(false)
+        }
+        MethodArg::LocalLinear => {
+            let mut c = FitConfig::automatic();
+            c.family = Family::Automatic {
+                max_models: a.max_models,
+                estimation: estimation.unwrap_or(Estimation::Global),
+            };
+            c
+        }
+        MethodArg::Ardupilot => FitConfig::baseline(Family::ArduPilot),
+        MethodArg::Px4 => FitConfig::baseline(Family::Px4),
+        MethodArg::Cubic => FitConfig::baseline(Family::Cubic),
+    };
+    if let Some(w) = a.weighting {
+        cfg.weighted = matches!(w, WeightingArg::InverseVariance);
+    }
+    cfg.input = match a.inputs {
+        InputArg::Throttle => InputKind::Throttle,
+        InputArg::Motors => InputKind::Motors,
+        InputArg::Current => InputKind::Current,
+    };
+    Ok(cfg)
+}
+
+/// Prints the short summary of a fitted model.
+pub fn print_summary(model: &Model) {
+    let terms = match &model.structure {
+        Structure::LocalLinear(n) => format!(
+            "{} local models, centres [{}]",
+            n.partition.len(),
+            n.partition
+                .centers()
+                .iter()
+                .map(|c| format!("{c:.3}"))
+                .collect::<Vec<_>>()
+                .join(", ")
+        ),
+        Structure::Polynomial { coefficients } => {
+            format!("polynomial of degree {}", coefficients[0].len() - 1)
+        }
+    };
+    println!(
+        "model: {} on {:?} input, {terms}",
+        model.method, model.input.kind
+    );
+    if let Some(s) = &model.summary {
+        println!(
+            "{} rows ({} in held-out time blocks)",
+            s.rows, s.holdout_rows
+        );
+        println!(
+            "{:>4} {:>9} {:>7} {:>16} {:>13} {:>13}",
+            "axis", "rmse_ut", "r2", "holdout_rmse_ut", "sd_off_ut", "sd_full_ut"
+        );
+        for a in 0..3 {
+            let (sd0, sd1) = model
+                .sd
+                .as_ref()
+                .map(|m| (m.sd(0.0)[a], m.sd(1.0)[a]))
+                .unwrap_or((f64::NAN, f64::NAN));
+            println!(
+                "{:>4} {:>9.3} {:>7.4} {:>16.3} {:>13.3} {:>13.3}",
+                AXES[a], s.rmse_ut[a], s.r2[a], s.holdout_rmse_ut[a], sd0, sd1
+            );
+        }
+    }
+}
+
+/// Runs `magstand fit`.
+pub fn run(a: FitArgs) -> Result<()> {
+    let cfg = config(&a)?.check()?;
+    files::refuse_overwriting_inputs(&[&a.recording], &[&a.model_out])?;
+    let rec = recording_csv::read(&a.recording)?;
+    let origin = a.recording.display().to_string();
+    let model = cfg.fit_recording(&rec, &origin)?;
+    if let Some(dir) = a.model_out.parent().filter(|d| !d.as_os_str().is_empty()) {
+        files::ensure_dir(dir)?;
+    }
+    model
+        .save(&a.model_out)
+        .with_context(|| format!("writing {}", a.model_out.display()))?;
+    print_summary(&model);
+    println!("wrote {}", a.model_out.display());
+    Ok(())
+}
