@@ -248,7 +248,9 @@ impl ValidFitConfig {
         select: &dyn Fn(usize) -> bool,
     ) -> Result<(Structure, Option<SdModel>), IdentError> {
         let unit = |_: usize| Vec3::repeat(1.0);
-        let fit_with = |weight: &dyn Fn(usize) -> Vec3| -> Result<Structure, IdentError> {
+        let fit_with = |weight: &dyn Fn(usize) -> Vec3,
+                        weight_at: &dyn Fn(f64) -> Vec3|
+         -> Result<Structure, IdentError> {
             Ok(match &self.0.family {
                 Family::LocalLinear {
                     centers,
@@ -279,6 +281,7 @@ impl ValidFitConfig {
                         &fit_part,
                         &score_part,
                         weight,
+                        weight_at,
                     )?;
                     Structure::LocalLinear(local_linear::fit(
                         data,
@@ -298,7 +301,7 @@ impl ValidFitConfig {
             let r = residuals(&m, data);
             SdModel::fit(&data.u, &r, rows, self.0.sd_knots)
         };
-        let mut s = fit_with(&unit)?;
+        let mut s = fit_with(&unit, &|_| Vec3::repeat(1.0))?;
         let mut sd = residual_sd(&s);
         let is_local_linear = matches!(
             self.0.family,
@@ -309,8 +312,9 @@ impl ValidFitConfig {
             // no longer over-follows the noisiest samples.
             for _ in 0..2 {
                 let Some(noise) = sd.clone() else { break };
-                let w = |k: usize| noise.sd(data.u[k]).map(|s| 1.0 / (s * s));
-                s = fit_with(&w)?;
+                let w_at = |u: f64| noise.sd(u).map(|s| 1.0 / (s * s));
+                let w = |k: usize| w_at(data.u[k]);
+                s = fit_with(&w, &w_at)?;
                 sd = residual_sd(&s);
             }
         }

@@ -1,9 +1,14 @@
 //! Automatic choice of the number, centres and widths of the local models (LOLIMOT, Nelles).
 //!
 //! Start with one local model over the input range. Repeatedly split the interval of the local
-//! model with the largest weighted local error into two halves, refit, and score the result on
-//! validation time blocks that the fit did not see. Stop when the validation error has not
+//! model with the largest local *systematic* error into two halves, refit, and score the result
+//! on validation time blocks that the fit did not see. Stop when the validation score has not
 //! improved by at least 1 % in three splits, or at the model limit; keep the best partition.
+//!
+//! Both the local error and the score are measured on residuals averaged within narrow bins of
+//! the input (`n_b |mean r_b|^2`, weighted per axis): with throttle-dependent noise many times
+//! the model's bias, plain squared residuals would split where the data are most numerous or
+//! noisiest instead of where the model is wrong.
 //! Each RBF sits at its interval's centre with a standard deviation of 0.35 of the interval's
 //! width (the paper's width 4 at a spacing of 0.5 is the same ratio).
 use magstand_core::Vec3;
@@ -26,14 +31,40 @@ pub fn partition_of(intervals: &[(f64, f64)]) -> RbfPartition {
     RbfPartition::new(centers, widths).expect("intervals of positive width give a valid partition")
 }
 
-/// Squared residual of a row, summed over axes with per-axis weights.
-fn weighted_sq(net: &LocalLinearNet, data: &Dataset, k: usize, w: Vec3, phi: &mut [f64]) -> f64 {
-    let r = data.y[k] - net.eval(data.u[k], data.regressors(k), phi);
-    (r.component_mul(&r)).dot(&w)
+/// Number of input bins over which residuals are averaged.
+pub const BINS: usize = 50;
+
+/// Per-bin residual sums and counts over the rows `rows` selects.
+fn binned_residuals(
+    net: &LocalLinearNet,
+    data: &Dataset,
+    rows: &dyn Fn(usize) -> bool,
+    lo: f64,
+    hi: f64,
+    phi: &mut [f64],
+) -> Vec<(Vec3, usize)> {
+    let mut bins = vec![(Vec3::zeros(), 0usize); BINS];
+    let width = (hi - lo).max(1e-12);
+    for k in (0..data.len()).filter(|&k| rows(k)) {
+        let b = (((data.u[k] - lo) / width * BINS as f64) as usize).min(BINS - 1);
+        bins[b].0 += data.y[k] - net.eval(data.u[k], data.regressors(k), phi);
+        bins[b].1 += 1;
+    }
+    bins
+}
+
+/// Systematic error energy of a bin: `n |mean r|^2`, weighted per axis.
+fn bin_energy((sum, n): (Vec3, usize), w: Vec3) -> f64 {
+    if n == 0 {
+        return 0.0;
+    }
+    let mean = sum / n as f64;
+    n as f64 * mean.component_mul(&mean).dot(&w)
 }
 
 /// Chooses a partition. `fit_row` selects the rows to fit on, `score_row` the rows to score on
-/// (disjoint from `fit_row`); `weight` gives per-axis row weights.
+/// (disjoint from `fit_row`); `weight` gives per-axis row weights and `weight_at` the same
+/// weights as a function of the normalized input.
 pub fn choose(
     data: &Dataset,
     estimation: Estimation,
@@ -41,6 +72,7 @@ pub fn choose(
     fit_row: &dyn Fn(usize) -> bool,
     score_row: &dyn Fn(usize) -> bool,
     weight: &dyn Fn(usize) -> Vec3,
+    weight_at: &dyn Fn(f64) -> Vec3,
 ) -> Result<RbfPartition, IdentError> {
     let (lo, hi) = (0..data.len())
         .filter(|&k| fit_row(k))
@@ -64,12 +96,14 @@ pub fn choose(
             }
             Err(e) => return Err(e),
         };
-        let (mut s, mut n) = (0.0, 0usize);
-        for k in (0..data.len()).filter(|&k| score_row(k)) {
-            s += weighted_sq(&net, data, k, weight(k), &mut phi);
-            n += 1;
-        }
-        let score = if n > 0 { s / n as f64 } else { f64::INFINITY };
+        let bin_u = |b: usize| lo + (hi - lo) * (b as f64 + 0.5) / BINS as f64;
+        let bin_weight = |b: usize| weight_at(bin_u(b));
+        let scored = binned_residuals(&net, data, score_row, lo, hi, &mut phi);
+        let score: f64 = scored
+            .iter()
+            .enumerate()
+            .map(|(b, &x)| bin_energy(x, bin_weight(b)))
+            .sum();
         match &best {
             Some((b, _)) if score >= 0.99 * b => since_improvement += 1,
             _ => since_improvement = 0,
@@ -80,22 +114,25 @@ pub fn choose(
         if since_improvement >= 3 || intervals.len() >= max_models {
             break;
         }
-        // Local losses on the fitting rows: each row's error shared by the models' weights.
+        // Local losses on the fitting rows: each bin's systematic error shared by the models'
+        // weights at the bin.
+        let fitted = binned_residuals(&net, data, fit_row, lo, hi, &mut phi);
         let mut loss = vec![0.0; intervals.len()];
-        let mut count = vec![0usize; intervals.len()];
-        for k in (0..data.len()).filter(|&k| fit_row(k)) {
-            let e = weighted_sq(&net, data, k, weight(k), &mut phi);
-            partition.weights_into(data.u[k], &mut phi);
+        for (b, &x) in fitted.iter().enumerate() {
+            let e = bin_energy(x, bin_weight(b));
+            partition.weights_into(bin_u(b), &mut phi);
             for (i, w) in phi.iter().enumerate() {
                 loss[i] += w * e;
             }
-            if let Some(i) = intervals
-                .iter()
-                .position(|&(a, b)| data.u[k] >= a && data.u[k] <= b)
-            {
-                count[i] += 1;
-            }
         }
+        let count: Vec<usize> = intervals
+            .iter()
+            .map(|&(a, b)| {
+                (0..data.len())
+                    .filter(|&k| fit_row(k) && data.u[k] >= a && data.u[k] <= b)
+                    .count()
+            })
+            .collect();
         // Split the worst interval that still has data on both sides of its middle.
         let mut order: Vec<usize> = (0..intervals.len()).collect();
         order.sort_by(|&a, &b| loss[b].total_cmp(&loss[a]));
