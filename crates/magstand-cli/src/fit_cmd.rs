@@ -6,7 +6,10 @@ use clap::{Args, ValueEnum};
 
 use crate::files;
 use magstand_core::{AXES, recording_csv};
-use magstand_ident::{Estimation, Family, FitConfig, InputKind, Model, Structure};
+use magstand_ident::{
+    Estimation, Family, FitConfig, InputKind, Model, Structure, evenly_spaced_centers,
+    paper_ratio_width,
+};
 
 /// Estimation method on the command line.
 #[derive(Clone, Copy, ValueEnum)]
@@ -102,18 +105,10 @@ fn config(a: &FitArgs) -> Result<FitConfig> {
                     bail!("--rbf {k} but {} --centers given", c.len())
                 }
                 (Some(c), _) => c.clone(),
-                (None, Some(k)) => (0..k)
-                    .map(|i| {
-                        if k > 1 {
-                            i as f64 / (k - 1) as f64
-                        } else {
-                            0.5
-                        }
-                    })
-                    .collect(),
+                (None, Some(k)) => evenly_spaced_centers(k),
                 (None, None) => vec![0.0, 0.5, 1.0],
             };
-            let eps = a.width.unwrap_or(2.0 * (centers.len().max(2) - 1) as f64);
+            let eps = a.width.unwrap_or(paper_ratio_width(centers.len()));
             FitConfig::fixed(centers, eps, est).with_weighting(false)
         }
         MethodArg::LocalLinear => {

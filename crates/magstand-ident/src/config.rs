@@ -74,16 +74,7 @@ impl FitConfig {
 
     /// `k` evenly spaced centres on 0..1 with the paper's width-to-spacing ratio (`eps = 2 (k-1)`).
     pub fn evenly_spaced(k: usize, estimation: Estimation) -> Self {
-        let centers = (0..k)
-            .map(|i| {
-                if k > 1 {
-                    i as f64 / (k - 1) as f64
-                } else {
-                    0.5
-                }
-            })
-            .collect();
-        Self::fixed(centers, (2.0 * (k.max(2) - 1) as f64).max(1.0), estimation)
+        Self::fixed(evenly_spaced_centers(k), paper_ratio_width(k), estimation)
     }
 
     /// Automatic structure with global estimation and inverse-variance weighting.
@@ -179,6 +170,25 @@ impl FitConfig {
     }
 }
 
+/// `k` centres evenly spaced on 0..1 (one centre sits at 0.5).
+pub fn evenly_spaced_centers(k: usize) -> Vec<f64> {
+    (0..k)
+        .map(|i| {
+            if k > 1 {
+                i as f64 / (k - 1) as f64
+            } else {
+                0.5
+            }
+        })
+        .collect()
+}
+
+/// Width parameter with the paper's width-to-spacing ratio for `k` evenly spaced centres
+/// (`eps = 2 (k-1)`: 4 for the paper's 3 centres).
+pub fn paper_ratio_width(k: usize) -> f64 {
+    2.0 * (k.max(2) - 1) as f64
+}
+
 /// Checked fit settings.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ValidFitConfig(FitConfig);
@@ -251,22 +261,16 @@ impl ValidFitConfig {
         let fit_with = |weight: &dyn Fn(usize) -> Vec3,
                         weight_at: &dyn Fn(f64) -> Vec3|
          -> Result<Structure, IdentError> {
-            Ok(match &self.0.family {
+            let (part, estimation) = match &self.0.family {
                 Family::LocalLinear {
                     centers,
                     widths,
                     estimation,
-                } => {
-                    let part = RbfPartition::new(centers.clone(), widths.clone())
-                        .expect("checked in FitConfig::check");
-                    Structure::LocalLinear(local_linear::fit(
-                        data,
-                        &part,
-                        *estimation,
-                        rows,
-                        weight,
-                    )?)
-                }
+                } => (
+                    RbfPartition::new(centers.clone(), widths.clone())
+                        .expect("checked in FitConfig::check"),
+                    *estimation,
+                ),
                 Family::Automatic {
                     max_models,
                     estimation,
@@ -274,31 +278,30 @@ impl ValidFitConfig {
                     // Choose on the fitting rows only: fit on some, score on others.
                     let fit_part = |k: usize| rows(k) && !select(k);
                     let score_part = |k: usize| rows(k) && select(k);
-                    let part = structure::choose(
-                        data,
+                    (
+                        structure::choose(
+                            data,
+                            *estimation,
+                            *max_models,
+                            &fit_part,
+                            &score_part,
+                            weight,
+                            weight_at,
+                        )?,
                         *estimation,
-                        *max_models,
-                        &fit_part,
-                        &score_part,
-                        weight,
-                        weight_at,
-                    )?;
-                    Structure::LocalLinear(local_linear::fit(
-                        data,
-                        &part,
-                        *estimation,
-                        rows,
-                        weight,
-                    )?)
+                    )
                 }
-                Family::ArduPilot => baseline::ardupilot(data, rows)?,
-                Family::Px4 => baseline::polynomial(data, 1, false, rows)?,
-                Family::Cubic => baseline::polynomial(data, 3, true, rows)?,
-            })
+                Family::ArduPilot => return baseline::ardupilot(data, rows),
+                Family::Px4 => return baseline::polynomial(data, 1, false, rows),
+                Family::Cubic => return baseline::polynomial(data, 3, true, rows),
+            };
+            Ok(Structure::LocalLinear(local_linear::fit(
+                data, &part, estimation, rows, weight,
+            )?))
         };
         let residual_sd = |s: &Structure| {
             let m = Model::new("", data.spec.clone(), data.reference_ut, s.clone(), None);
-            let r = residuals(&m, data);
+            let r = m.residuals(data);
             SdModel::fit(&data.u, &r, rows, self.0.sd_knots)
         };
         let mut s = fit_with(&unit, &|_| Vec3::repeat(1.0))?;
@@ -322,37 +325,18 @@ impl ValidFitConfig {
     }
 }
 
-/// Residuals `y - model output` (with the model output taken relative to motors-off, as `y` is).
-pub fn residuals(m: &Model, data: &Dataset) -> Vec<Vec3> {
-    let mut s = m.scratch();
-    let off = m.off_output(&mut s);
-    let mut phi = vec![0.0; s_phi_len(m)];
-    (0..data.len())
-        .map(|k| data.y[k] - (m.output(data.u[k], data.regressors(k), &mut phi) - off))
-        .collect()
-}
-
-fn s_phi_len(m: &Model) -> usize {
-    match &m.structure {
-        Structure::LocalLinear(n) => n.partition.len(),
-        Structure::Polynomial { .. } => 0,
-    }
-}
-
 impl Fit for ValidFitConfig {
     type Output = Model;
 
     fn fit(&self, data: &Dataset) -> Result<Model, IdentError> {
         let holdout = data.holdout_mask();
-        let t0 = data.t_s[0];
-        let span = data.t_s[data.len() - 1] - t0;
-        let block = (span / 50.0).clamp(1e-6, 1.0);
         // Structure selection scores on its own blocks, never on the held-out ones.
-        let select = |k: usize| ((data.t_s[k] - t0) / block).floor() as u64 % 5 == 3;
+        let blocks = data.time_blocks();
+        let select = |k: usize| blocks[k] % 5 == 3;
         let train = |k: usize| !holdout[k];
         let (s_train, _) = self.fit_rows(data, &train, &select)?;
         let train_model = Model::new("", data.spec.clone(), data.reference_ut, s_train, None);
-        let r_train = residuals(&train_model, data);
+        let r_train = train_model.residuals(data);
         let (structure, sd) = self.fit_rows(data, &|_| true, &select)?;
         let mut model = Model::new(
             &self.method_name(),
@@ -361,7 +345,7 @@ impl Fit for ValidFitConfig {
             structure,
             sd,
         );
-        let r = residuals(&model, data);
+        let r = model.residuals(data);
         let holdout_rows = holdout.iter().filter(|h| **h).count();
         let rms = |rows: &mut dyn Iterator<Item = Vec3>, n: usize| -> [f64; 3] {
             let s = rows.fold(Vec3::zeros(), |acc, v| acc + v.component_mul(&v));

@@ -236,15 +236,21 @@ impl Dataset {
         &self.x[row * p..(row + 1) * p]
     }
 
-    /// Splits rows into identification and held-out sets by time blocks: every fifth block of
-    /// `block_s` seconds is held out, so that held-out samples are not neighbours of fitted ones.
-    pub fn holdout_mask(&self) -> Vec<bool> {
+    /// Index of the time block of each row: blocks of 1 s, or shorter so that a recording has
+    /// at least 50 of them.
+    pub fn time_blocks(&self) -> Vec<u64> {
         let t0 = self.t_s[0];
         let span = self.t_s[self.len() - 1] - t0;
         let block = (span / 50.0).clamp(1e-6, 1.0);
         self.t_s
             .iter()
-            .map(|t| ((t - t0) / block).floor() as u64 % 5 == 4)
+            .map(|t| ((t - t0) / block).floor() as u64)
             .collect()
+    }
+
+    /// Splits rows into identification and held-out sets by time blocks: every fifth block is
+    /// held out, so that held-out samples are not neighbours of fitted ones.
+    pub fn holdout_mask(&self) -> Vec<bool> {
+        self.time_blocks().into_iter().map(|b| b % 5 == 4).collect()
     }
 }

@@ -51,7 +51,9 @@ mod model;
 pub mod noise_model;
 pub mod structure;
 
-pub use config::{Family, Fit, FitConfig, Predict, ValidFitConfig, residuals};
+pub use config::{
+    Family, Fit, FitConfig, Predict, ValidFitConfig, evenly_spaced_centers, paper_ratio_width,
+};
 pub use dataset::{Dataset, InputKind, InputSpec, MIN_ROWS, OFF_COMMAND};
 pub use error::IdentError;
 pub use local_linear::{Estimation, LocalLinearNet};

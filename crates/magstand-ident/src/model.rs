@@ -142,6 +142,16 @@ impl Model {
         self.output(u, &s.x, &mut s.phi)
     }
 
+    /// Residuals of identification data, `y - (output - off output)`: what the model leaves
+    /// of the eq. 9 deviations.
+    pub fn residuals(&self, data: &crate::Dataset) -> Vec<Vec3> {
+        let mut s = self.scratch();
+        let off = self.off_output(&mut s);
+        (0..data.len())
+            .map(|k| data.y[k] - (self.output(data.u[k], data.regressors(k), &mut s.phi) - off))
+            .collect()
+    }
+
     /// Predicted disturbance at a row of a recording: zero with the motors off.
     pub fn dist(&self, rec: &Recording, row: usize, off: Vec3, s: &mut Scratch) -> Vec3 {
         self.input.regressors(rec, row, &mut s.x);
