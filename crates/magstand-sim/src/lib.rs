@@ -53,6 +53,7 @@ pub mod scenario;
 mod simulate;
 pub mod stand;
 pub mod thermal;
+pub mod variation;
 pub mod wiring;
 
 pub use error::SimError;

@@ -17,6 +17,7 @@ use crate::noise::NoiseParams;
 use crate::program::{DifferentialParams, ProgramParams};
 use crate::stand::StandParams;
 use crate::thermal::ThermalParams;
+use crate::variation::StudyParams;
 use crate::wiring::WiringParams;
 use magstand_core::Vec3;
 
@@ -134,6 +135,9 @@ pub struct Scenario {
     /// Columns and stream delay.
     #[serde(default)]
     pub logging: LoggingParams,
+    /// What a Monte Carlo study changes from run to run.
+    #[serde(default)]
+    pub study: StudyParams,
 }
 
 /// A checked scenario, ready to simulate.
@@ -166,6 +170,22 @@ impl ValidScenario {
     /// program's file is written as the absolute path it was loaded from.
     pub fn to_toml(&self) -> String {
         toml::to_string(&self.scenario).expect("a checked scenario always serializes")
+    }
+
+    /// The scenario with `key=value` overrides applied to its fully resolved form (so defaults
+    /// and array elements can be overridden too), checked again.
+    pub fn with_overrides(&self, overrides: &[String]) -> Result<ValidScenario, SimError> {
+        if overrides.is_empty() {
+            return Ok(self.clone());
+        }
+        let s = Scenario::from_toml_with_overrides(&self.to_toml(), &self.origin, overrides)?;
+        let with = format!("{} (with overrides {})", self.origin, overrides.join(", "));
+        s.check(&with, None)
+    }
+
+    /// The validation series of a study: this scenario with `[study] validation` applied.
+    pub fn validation(&self) -> Result<ValidScenario, SimError> {
+        self.with_overrides(&self.scenario.study.validation)
     }
 
     /// Back to an unchecked scenario, e.g. to change a parameter and check again.
@@ -253,6 +273,7 @@ impl Scenario {
         self.hysteresis.check(&c)?;
         self.stand.check(&c, self.physics_hz)?;
         c.range("logging.mag_delay_s", self.logging.mag_delay_s, 0.0, 10.0)?;
+        self.study.check(&c)?;
         let replay = match &mut self.program {
             ProgramParams::Replay { file } => {
                 let mut path = PathBuf::from(&*file);
@@ -304,6 +325,7 @@ fn apply_override(table: &mut toml::Table, text: &str) -> Result<(), SimError> {
         Err(_) => toml::Value::String(raw.trim().to_string()),
     };
     let mut cur = table;
+    let (last, index) = split_index(parts[parts.len() - 1]).map_err(|m| fail(&m))?;
     for p in &parts[..parts.len() - 1] {
         let entry = cur
             .entry(p.to_string())
@@ -312,8 +334,37 @@ fn apply_override(table: &mut toml::Table, text: &str) -> Result<(), SimError> {
             .as_table_mut()
             .ok_or_else(|| fail(&format!("`{p}` is not a table")))?;
     }
-    cur.insert(parts[parts.len() - 1].to_string(), value);
+    match index {
+        None => {
+            cur.insert(last.to_string(), value);
+        }
+        Some(i) => {
+            let array = cur
+                .get_mut(last)
+                .and_then(toml::Value::as_array_mut)
+                .ok_or_else(|| fail(&format!("`{last}` is not an array here")))?;
+            let len = array.len();
+            let slot = array.get_mut(i).ok_or_else(|| {
+                fail(&format!("index {i} is outside `{last}`, which has {len} elements"))
+            })?;
+            *slot = value;
+        }
+    }
     Ok(())
+}
+
+/// `name[i]` into `("name", Some(i))`, `name` into `("name", None)`.
+fn split_index(part: &str) -> Result<(&str, Option<usize>), String> {
+    match part.split_once('[') {
+        None => Ok((part, None)),
+        Some((name, rest)) => {
+            let i = rest
+                .strip_suffix(']')
+                .and_then(|i| i.trim().parse().ok())
+                .ok_or_else(|| format!("`{part}`: expected `name[index]`"))?;
+            Ok((name, Some(i)))
+        }
+    }
 }
 
 #[cfg(test)]
@@ -399,5 +450,72 @@ mod tests {
         );
         let e = check(&text, &[]).unwrap_err().to_string();
         assert!(e.contains("wiring.segment[0].carries"), "{e}");
+    }
+
+    #[test]
+    fn overrides_reach_defaults_and_array_elements_of_the_resolved_scenario() {
+        let v = check(MINIMAL, &[]).unwrap();
+        let moved = v
+            .with_overrides(&["magnetometer.position_m[1]=0.02".into()])
+            .unwrap();
+        assert_eq!(moved.params().magnetometer.position_m, [0.0, 0.02, 0.0]);
+        let e = v
+            .with_overrides(&["magnetometer.position_m[3]=0.02".into()])
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("index 3") && e.contains("3 elements"), "{e}");
+        let e = v
+            .with_overrides(&["motors.kv_rpm_per_v[0]=1.0".into()])
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("not an array"), "{e}");
+    }
+
+    #[test]
+    fn study_draws_follow_their_distributions_and_are_checked() {
+        use rand::SeedableRng;
+        let text = format!(
+            "{MINIMAL}[study]\nvalidation = ['program.direction=\"down\"']\n\
+             [[study.vary]]\nkey = \"motors.kv_rpm_per_v\"\nnormal = [900.0, 10.0]\n\
+             [[study.vary]]\nkey = \"noise.sensor_sd_ut\"\nuniform = [0.1, 0.2]\n"
+        );
+        let v = check(&text, &[]).unwrap();
+        assert_eq!(
+            v.validation().unwrap().params().program,
+            check(MINIMAL, &["program.direction=\"down\""])
+                .unwrap()
+                .params()
+                .program
+        );
+        let mut rng = rand::rngs::Xoshiro256PlusPlus::seed_from_u64(5);
+        let draws: Vec<(f64, f64)> = (0..2000)
+            .map(|_| {
+                let d = v.with_overrides(&v.params().study.draw(&mut rng)).unwrap();
+                (d.params().motors.kv_rpm_per_v, d.params().noise.sensor_sd_ut)
+            })
+            .collect();
+        let n = draws.len() as f64;
+        let mean_kv = draws.iter().map(|d| d.0).sum::<f64>() / n;
+        let sd_kv = (draws.iter().map(|d| (d.0 - mean_kv).powi(2)).sum::<f64>() / n).sqrt();
+        assert!((mean_kv - 900.0).abs() < 1.0, "mean {mean_kv}");
+        assert!((sd_kv - 10.0).abs() < 0.6, "sd {sd_kv}");
+        assert!(draws.iter().all(|d| (0.1..0.2).contains(&d.1)));
+
+        let bad = format!(
+            "{MINIMAL}[[study.vary]]\nkey = \"motors.kv_rpm_per_v\"\nnormal = [900.0, 10.0]\nuniform = [1.0, 2.0]\n"
+        );
+        let e = check(&bad, &[]).unwrap_err().to_string();
+        assert!(e.contains("study.vary[0]") && e.contains("exactly one"), "{e}");
+        let bad = format!("{MINIMAL}[[study.vary]]\nkey = \"noise.sensor_sd_ut\"\nuniform = [0.3, 0.2]\n");
+        let e = check(&bad, &[]).unwrap_err().to_string();
+        assert!(e.contains("study.vary[0].uniform[1]"), "{e}");
+        // A draw outside the parameter's range is refused by the parameter's own check.
+        let neg = format!("{MINIMAL}[[study.vary]]\nkey = \"noise.sensor_sd_ut\"\nuniform = [-2.0, -1.0]\n");
+        let v = check(&neg, &[]).unwrap();
+        let e = v
+            .with_overrides(&v.params().study.draw(&mut rng))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("noise.sensor_sd_ut"), "{e}");
     }
 }
