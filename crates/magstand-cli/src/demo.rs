@@ -12,7 +12,6 @@ use crate::progress::SimulationBar;
 use crate::simulate_cmd::load_scenario;
 use magstand_core::{Vec3, recording_csv};
 use magstand_ident::metrics::Evaluation;
-use magstand_ident::{Estimation, Family, FitConfig};
 
 /// Arguments of `magstand demo`.
 #[derive(Args)]
@@ -23,32 +22,6 @@ pub struct DemoArgs {
     /// Random seed of the identification run (validation uses seed + 1).
     #[arg(long, default_value_t = 3)]
     seed: u64,
-}
-
-/// The methods the demo compares, in the order printed.
-pub fn compared_methods() -> Vec<(&'static str, FitConfig)> {
-    vec![
-        (
-            "ArduPilot compassmot (line, running avg)",
-            FitConfig::baseline(Family::ArduPilot),
-        ),
-        ("PX4 (least-squares line)", FitConfig::baseline(Family::Px4)),
-        ("cubic", FitConfig::baseline(Family::Cubic)),
-        ("paper: 3 RBF, local estimation", FitConfig::paper()),
-        (
-            "3 RBF, global estimation",
-            FitConfig::fixed(vec![0.0, 0.5, 1.0], 4.0, Estimation::Global),
-        ),
-        (
-            "3 RBF, global, inverse-variance",
-            FitConfig::fixed(vec![0.0, 0.5, 1.0], 4.0, Estimation::Global).with_weighting(true),
-        ),
-        ("magstand: automatic structure", FitConfig::automatic()),
-        (
-            "magstand: automatic, current input",
-            FitConfig::automatic().with_input(magstand_ident::InputKind::Current),
-        ),
-    ]
 }
 
 /// Runs the demo.
@@ -82,14 +55,16 @@ pub fn run(a: DemoArgs) -> Result<()> {
 
     let mut best = None;
     let mut table = Vec::new();
-    for (name, cfg) in compared_methods() {
-        let model = cfg
+    for method in magstand_ident::methods::catalog() {
+        let name = method.label;
+        let model = method
+            .config
             .check()?
             .fit_recording(&ident, &ident_path.display().to_string())?;
         let ev = Evaluation::new(&model, &valid);
         let rmse = Vec3::from(ev.truth_rmse_ut.expect("simulated validation has truth")).norm();
         table.push((name, rmse, ev));
-        if name == "magstand: automatic structure" {
+        if method.id == "automatic" {
             best = Some(model);
         }
     }

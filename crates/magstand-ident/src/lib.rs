@@ -46,6 +46,7 @@ mod dataset;
 mod error;
 pub mod least_squares;
 pub mod local_linear;
+pub mod methods;
 pub mod metrics;
 mod model;
 pub mod noise_model;

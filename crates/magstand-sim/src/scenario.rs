@@ -345,7 +345,9 @@ fn apply_override(table: &mut toml::Table, text: &str) -> Result<(), SimError> {
                 .ok_or_else(|| fail(&format!("`{last}` is not an array here")))?;
             let len = array.len();
             let slot = array.get_mut(i).ok_or_else(|| {
-                fail(&format!("index {i} is outside `{last}`, which has {len} elements"))
+                fail(&format!(
+                    "index {i} is outside `{last}`, which has {len} elements"
+                ))
             })?;
             *slot = value;
         }
@@ -491,7 +493,10 @@ mod tests {
         let draws: Vec<(f64, f64)> = (0..2000)
             .map(|_| {
                 let d = v.with_overrides(&v.params().study.draw(&mut rng)).unwrap();
-                (d.params().motors.kv_rpm_per_v, d.params().noise.sensor_sd_ut)
+                (
+                    d.params().motors.kv_rpm_per_v,
+                    d.params().noise.sensor_sd_ut,
+                )
             })
             .collect();
         let n = draws.len() as f64;
@@ -505,12 +510,19 @@ mod tests {
             "{MINIMAL}[[study.vary]]\nkey = \"motors.kv_rpm_per_v\"\nnormal = [900.0, 10.0]\nuniform = [1.0, 2.0]\n"
         );
         let e = check(&bad, &[]).unwrap_err().to_string();
-        assert!(e.contains("study.vary[0]") && e.contains("exactly one"), "{e}");
-        let bad = format!("{MINIMAL}[[study.vary]]\nkey = \"noise.sensor_sd_ut\"\nuniform = [0.3, 0.2]\n");
+        assert!(
+            e.contains("study.vary[0]") && e.contains("exactly one"),
+            "{e}"
+        );
+        let bad = format!(
+            "{MINIMAL}[[study.vary]]\nkey = \"noise.sensor_sd_ut\"\nuniform = [0.3, 0.2]\n"
+        );
         let e = check(&bad, &[]).unwrap_err().to_string();
         assert!(e.contains("study.vary[0].uniform[1]"), "{e}");
         // A draw outside the parameter's range is refused by the parameter's own check.
-        let neg = format!("{MINIMAL}[[study.vary]]\nkey = \"noise.sensor_sd_ut\"\nuniform = [-2.0, -1.0]\n");
+        let neg = format!(
+            "{MINIMAL}[[study.vary]]\nkey = \"noise.sensor_sd_ut\"\nuniform = [-2.0, -1.0]\n"
+        );
         let v = check(&neg, &[]).unwrap();
         let e = v
             .with_overrides(&v.params().study.draw(&mut rng))
