@@ -11,6 +11,7 @@ mod compensate_cmd;
 mod demo;
 mod files;
 mod fit_cmd;
+mod montecarlo_cmd;
 mod progress;
 mod simulate_cmd;
 
@@ -31,6 +32,8 @@ enum Command {
     Fit(fit_cmd::FitArgs),
     /// Remove a model's predicted disturbance from a recording.
     Compensate(compensate_cmd::CompensateArgs),
+    /// Monte Carlo accuracy study against the Cramer-Rao bound (parallel, shardable).
+    Montecarlo(montecarlo_cmd::MonteCarloArgs),
     /// Run the embedded paper-like scenario end to end and print what it shows.
     Demo(demo::DemoArgs),
 }
@@ -41,6 +44,7 @@ fn main() -> ExitCode {
         Command::Simulate(a) => simulate_cmd::run(a),
         Command::Fit(a) => fit_cmd::run(a),
         Command::Compensate(a) => compensate_cmd::run(a),
+        Command::Montecarlo(a) => montecarlo_cmd::run(a),
         Command::Demo(a) => demo::run(a),
     };
     match result {

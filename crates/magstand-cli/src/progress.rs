@@ -33,3 +33,36 @@ impl Drop for SimulationBar {
         self.bar.finish_and_clear();
     }
 }
+
+/// Shows a bar over Monte Carlo runs, with an ETA. Shared by the worker threads.
+pub struct RunsBar {
+    bar: ProgressBar,
+}
+
+impl RunsBar {
+    /// A bar over `total` runs labelled `label`.
+    pub fn new(label: &str, total: usize) -> Self {
+        let bar = ProgressBar::new(total as u64);
+        bar.set_style(
+            ProgressStyle::with_template(
+                "{prefix} [{bar:40}] {pos}/{len} runs, {elapsed} elapsed, eta {eta}",
+            )
+            .expect("constant template")
+            .progress_chars("=> "),
+        );
+        bar.set_prefix(label.to_string());
+        Self { bar }
+    }
+}
+
+impl magstand_study::StudyObserver for RunsBar {
+    fn run_finished(&self, done: usize, _total: usize) {
+        self.bar.set_position(done as u64);
+    }
+}
+
+impl Drop for RunsBar {
+    fn drop(&mut self) {
+        self.bar.finish_and_clear();
+    }
+}

@@ -83,12 +83,7 @@ pub fn run_one(study: &ValidStudy, run: usize) -> Result<Vec<MethodOutcome>, Stu
     let valid = magstand_sim::simulate(&valid_s, derive_seed(seed, 0x7A11D));
     let needs_bound = study.methods.iter().any(|m| m.fixed_structure);
     let bound = if needs_bound {
-        let structure = magstand_ident::methods::by_id("global")
-            .expect("the catalog has the global fixed structure")
-            .config
-            .check()
-            .expect("catalog configs check");
-        crlb::fixed_structure_bound(&ident, &structure)
+        crlb::fixed_structure_bound(&ident)
     } else {
         None
     };

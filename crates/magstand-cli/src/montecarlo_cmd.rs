@@ -1,0 +1,278 @@
+//! `magstand montecarlo`: accuracy studies against the Cramer-Rao bound, sharding and merging,
+//! and the procedure sweep.
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, Result, bail};
+use clap::{Args, Subcommand};
+
+use crate::files;
+use crate::progress::RunsBar;
+use crate::simulate_cmd::load_scenario;
+use magstand_study::{Shard, StudyConfig, StudyResult, Summary, run_study, write_summary};
+
+/// Arguments of `magstand montecarlo`.
+#[derive(Args)]
+#[command(args_conflicts_with_subcommands = true, subcommand_negates_reqs = true)]
+pub struct MonteCarloArgs {
+    #[command(subcommand)]
+    command: Option<MonteCarloCommand>,
+    #[command(flatten)]
+    study: StudyArgs,
+}
+
+#[derive(Subcommand)]
+enum MonteCarloCommand {
+    /// Merge the shards of one study (their output folders) into the whole study's files.
+    Merge(MergeArgs),
+}
+
+#[derive(Args)]
+struct StudyArgs {
+    /// Scenario file, or `builtin:NAME`. Its `[study]` table sets the validation series and
+    /// the parameters drawn per run.
+    #[arg(long, required = true)]
+    scenario: Option<String>,
+    /// Runs in the whole study (over all shards).
+    #[arg(long, required = true)]
+    runs: Option<usize>,
+    /// Output folder: runs.csv, study.json, SUMMARY.json (whole studies).
+    #[arg(long, required = true)]
+    out: Option<PathBuf>,
+    /// Also write the summary here.
+    #[arg(long)]
+    json: Option<PathBuf>,
+    /// Study seed (default: the scenario's).
+    #[arg(long)]
+    seed: Option<u64>,
+    /// Worker threads (default: all cores). Results do not depend on it.
+    #[arg(long)]
+    threads: Option<usize>,
+    /// Run only slice K of M (e.g. 3/10); merge the slices with `magstand montecarlo merge`.
+    #[arg(long)]
+    shard: Option<String>,
+    /// Methods to compare, comma-separated ids (default: all the scenario can feed).
+    #[arg(long, value_delimiter = ',')]
+    methods: Vec<String>,
+    /// Override a scenario value for both series, `key=value` (repeatable).
+    #[arg(long = "set")]
+    overrides: Vec<String>,
+    /// Override a value of the identification series only (a procedure setting), `key=value`.
+    #[arg(long = "ident-set")]
+    ident_overrides: Vec<String>,
+    /// Vary one procedure setting of the identification series over values and tabulate the
+    /// accuracy against it: `key=v1,v2,...` (e.g. `program.dwell_s=2,5,10`).
+    #[arg(long)]
+    sweep: Option<String>,
+}
+
+#[derive(Args)]
+struct MergeArgs {
+    /// Shard output folders.
+    #[arg(required = true)]
+    shards: Vec<PathBuf>,
+    /// Output folder for the merged study.
+    #[arg(long)]
+    out: PathBuf,
+    /// Also write the summary here.
+    #[arg(long)]
+    json: Option<PathBuf>,
+}
+
+/// Runs `magstand montecarlo`.
+pub fn run(a: MonteCarloArgs) -> Result<()> {
+    match a.command {
+        Some(MonteCarloCommand::Merge(m)) => merge(m),
+        None => study(a.study),
+    }
+}
+
+fn study(a: StudyArgs) -> Result<()> {
+    let (Some(spec), Some(runs), Some(out)) = (a.scenario.clone(), a.runs, a.out.clone()) else {
+        bail!("--scenario, --runs and --out are required");
+    };
+    let scenario = load_scenario(&spec, &a.overrides)?;
+    let shard = a
+        .shard
+        .as_deref()
+        .map(Shard::parse)
+        .transpose()?
+        .unwrap_or(Shard::ALL);
+    let config = |ident: Vec<String>| StudyConfig {
+        runs,
+        seed: a.seed.unwrap_or(scenario.params().seed),
+        methods: a.methods.clone(),
+        shard,
+        identification_overrides: ident,
+    };
+    let Some(sweep) = &a.sweep else {
+        let valid = config(a.ident_overrides.clone()).check(&scenario)?;
+        let inputs = [Path::new(&spec)];
+        files::refuse_overwriting_inputs(&inputs, &[&out.join("runs.csv")])?;
+        files::ensure_dir(&out)?;
+        let bar = RunsBar::new("montecarlo", valid.run_indices().len());
+        let result = run_study(&valid, a.threads, &bar)?;
+        drop(bar);
+        return finish(&result, &out, a.json.as_deref());
+    };
+
+    if shard != Shard::ALL {
+        bail!(
+            "--sweep runs whole studies; to spread a sweep over machines, run one sharded study per value with --ident-set KEY=VALUE"
+        );
+    }
+    let (key, values) = sweep
+        .split_once('=')
+        .filter(|(k, v)| !k.trim().is_empty() && !v.trim().is_empty())
+        .with_context(|| format!("--sweep `{sweep}`: expected key=v1,v2,..."))?;
+    let values: Vec<&str> = values.split(',').map(str::trim).collect();
+    // Check every value before running any, so a typo in the last value fails at once.
+    let studies = values
+        .iter()
+        .map(|v| {
+            let mut ident = a.ident_overrides.clone();
+            ident.push(format!("{key}={v}"));
+            config(ident)
+                .check(&scenario)
+                .with_context(|| format!("--sweep value {key}={v}"))
+        })
+        .collect::<Result<Vec<_>>>()?;
+    files::ensure_dir(&out)?;
+    let mut table = Vec::new();
+    for (v, valid) in values.iter().zip(&studies) {
+        let dir = out.join(format!("{}={v}", key.replace(['/', '\\'], "_")));
+        files::ensure_dir(&dir)?;
+        let bar = RunsBar::new(&format!("{key}={v}"), valid.run_indices().len());
+        let result = run_study(valid, a.threads, &bar)?;
+        drop(bar);
+        let summary = result.write(&dir)?.expect("a sweep runs whole studies");
+        table.push((v.to_string(), summary));
+    }
+    let text = sweep_table(key, &table);
+    magstand_core::atomic_file::write_bytes(&out.join("sweep.csv"), text.as_bytes())?;
+    println!("Accuracy against {key} (validation series, {runs} runs per value):\n");
+    print!("{}", sweep_pretty(key, &table));
+    println!(
+        "\nwrote {} and one folder per value",
+        out.join("sweep.csv").display()
+    );
+    Ok(())
+}
+
+fn merge(m: MergeArgs) -> Result<()> {
+    let shards = m
+        .shards
+        .iter()
+        .map(|d| StudyResult::read(d).with_context(|| format!("shard {}", d.display())))
+        .collect::<Result<Vec<_>>>()?;
+    let inputs: Vec<PathBuf> = m.shards.iter().map(|d| d.join("runs.csv")).collect();
+    let input_refs: Vec<&Path> = inputs.iter().map(PathBuf::as_path).collect();
+    files::refuse_overwriting_inputs(&input_refs, &[&m.out.join("runs.csv")])?;
+    let merged = magstand_study::merge(shards)?;
+    files::ensure_dir(&m.out)?;
+    finish(&merged, &m.out, m.json.as_deref())
+}
+
+/// Writes a result and prints its table (whole studies) or where the shard went.
+fn finish(result: &StudyResult, out: &Path, json: Option<&Path>) -> Result<()> {
+    match result.write(out)? {
+        Some(summary) => {
+            if let Some(j) = json {
+                write_summary(&summary, j)?;
+            }
+            print!("{}", summary_table(&summary));
+            println!(
+                "\nwrote {} and {}",
+                out.join("runs.csv").display(),
+                out.join("SUMMARY.json").display()
+            );
+        }
+        None => {
+            let [k, m] = result.info.shard;
+            println!(
+                "shard {k}/{m} (runs {}..{}) written to {}; merge all shards with `magstand montecarlo merge DIR1 DIR2 ... --out DIR`",
+                result.info.run_range[0],
+                result.info.run_range[1],
+                out.display()
+            );
+        }
+    }
+    Ok(())
+}
+
+fn fmt_opt(v: Option<f64>, digits: usize) -> String {
+    v.map(|x| format!("{x:.digits$}"))
+        .unwrap_or_else(|| "-".into())
+}
+
+/// The summary as a fixed-width table.
+pub fn summary_table(s: &Summary) -> String {
+    let mut out = format!(
+        "{} runs of {} (seed {}); figures on the validation series against the simulator's truth\n\n",
+        s.study.runs, s.study.scenario, s.study.seed
+    );
+    out += &format!(
+        "{:<40} {:>24} {:>22} {:>10} {:>10} {:>6}\n",
+        "method",
+        "dist_rmse_ut p50 [p5,p95]",
+        "heading_after_deg p50",
+        "crlb_ratio",
+        "mse_ratio",
+        "failed"
+    );
+    for m in &s.methods {
+        let r = m.figure("rmse_ut");
+        let h = m.figure("heading_after_deg");
+        out += &format!(
+            "{:<40} {:>24} {:>22} {:>10} {:>10} {:>6}\n",
+            m.label,
+            r.map(|r| format!("{:.3} [{:.3},{:.3}]", r.p50, r.p5, r.p95))
+                .unwrap_or_else(|| "-".into()),
+            fmt_opt(h.map(|h| h.p50), 2),
+            fmt_opt(m.crlb_ratio, 2),
+            fmt_opt(m.mse_crlb_ratio, 2),
+            m.failures
+        );
+    }
+    out
+}
+
+fn sweep_rows(table: &[(String, Summary)]) -> Vec<[String; 6]> {
+    let mut rows = Vec::new();
+    for (v, s) in table {
+        for m in &s.methods {
+            let r = m.figure("rmse_ut");
+            rows.push([
+                v.clone(),
+                m.method.clone(),
+                fmt_opt(r.map(|r| r.p50), 4),
+                fmt_opt(r.map(|r| r.p95), 4),
+                fmt_opt(m.figure("heading_after_deg").map(|h| h.p50), 3),
+                fmt_opt(m.crlb_ratio, 3),
+            ]);
+        }
+    }
+    rows
+}
+
+fn sweep_table(key: &str, table: &[(String, Summary)]) -> String {
+    let mut out =
+        format!("{key},method,rmse_ut_p50,rmse_ut_p95,heading_after_deg_p50,crlb_ratio\n");
+    for r in sweep_rows(table) {
+        out += &(r.join(",") + "\n");
+    }
+    out
+}
+
+fn sweep_pretty(key: &str, table: &[(String, Summary)]) -> String {
+    let mut out = format!(
+        "{key:>16} {:<20} {:>12} {:>12} {:>12} {:>10}\n",
+        "method", "rmse_ut p50", "rmse_ut p95", "heading p50", "crlb_ratio"
+    );
+    for r in sweep_rows(table) {
+        out += &format!(
+            "{:>16} {:<20} {:>12} {:>12} {:>12} {:>10}\n",
+            r[0], r[1], r[2], r[3], r[4], r[5]
+        );
+    }
+    out
+}
