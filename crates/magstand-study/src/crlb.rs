@@ -14,13 +14,14 @@
 //! approximation; that difference shows as bias (`mse_crlb_ratio`), not as variance
 //! (`crlb_ratio`).
 //!
-//! The bound treats the eq. 9 motors-off reference as known. Its own error (variance
-//! `s_0^2 / n_off`, about 1e-5 µT² for ten seconds at 100 Hz) moves every intercept together and
-//! is negligible next to the parameter variances of a stair run.
+//! The motors-off reference is a parameter too: motors-off rows read `r + noise`, the others
+//! `r + z_k^T theta + noise`. Eq. 9 defines the disturbance as zero at zero command
+//! (`z_0^T theta = 0`), which the estimators use when they subtract the motors-off mean, so the
+//! bound is the constrained Cramer-Rao bound of `theta` in that joint model.
 use magstand_core::Recording;
 use magstand_core::rbf::RbfPartition;
 use magstand_ident::local_linear;
-use magstand_ident::{Dataset, Estimation, InputKind, LocalLinearNet, Model, Structure};
+use magstand_ident::{Dataset, Estimation, InputKind, OFF_COMMAND, LocalLinearNet, Model, Structure};
 use nalgebra::{DMatrix, DVector};
 
 /// Number of parameters per axis of the fixed structure.
@@ -79,7 +80,10 @@ pub fn fixed_structure_bound(rec: &Recording) -> Option<Bound> {
         &inverse_variance,
     )
     .ok()?;
-    let crlb_diag = fisher_inverse_diagonal(&data, &net, sd)?;
+    let off: Vec<bool> = (0..rec.len())
+        .map(|r| rec.thr.iter().all(|m| m[r] <= OFF_COMMAND))
+        .collect();
+    let crlb_diag = fisher_inverse_diagonal(&data, &off, &net, sd)?;
     Some(Bound {
         truth: std::array::from_fn(|a| net.coefficients[a].iter().flatten().copied().collect()),
         crlb_diag,
@@ -88,34 +92,70 @@ pub fn fixed_structure_bound(rec: &Recording) -> Option<Bound> {
 
 fn fisher_inverse_diagonal(
     data: &Dataset,
+    off: &[bool],
     net: &LocalLinearNet,
     sd: &[magstand_core::Vec3],
 ) -> Option<[Vec<f64>; 3]> {
     let m = net.partition.len();
     let p = data.spec.regressor_count();
     let n = m * p;
-    let mut fisher: [DMatrix<f64>; 3] = std::array::from_fn(|_| DMatrix::zeros(n, n));
+    // Joint parameters: the model's n, then the field reference r (the motors-off reading).
+    let mut fisher: [DMatrix<f64>; 3] = std::array::from_fn(|_| DMatrix::zeros(n + 1, n + 1));
     let mut phi = vec![0.0; m];
-    let mut z = DVector::zeros(n);
+    let mut z = DVector::zeros(n + 1);
     for k in 0..data.len() {
-        net.partition.weights_into(data.u[k], &mut phi);
-        let x = data.regressors(k);
-        for i in 0..m {
-            for j in 0..p {
-                z[i * p + j] = phi[i] * x[j];
+        if off[k] {
+            // Motors off: the reading is the reference plus noise, no disturbance.
+            z.fill(0.0);
+        } else {
+            net.partition.weights_into(data.u[k], &mut phi);
+            let x = data.regressors(k);
+            for i in 0..m {
+                for j in 0..p {
+                    z[i * p + j] = phi[i] * x[j];
+                }
             }
         }
+        z[n] = 1.0;
         for (a, f) in fisher.iter_mut().enumerate() {
             let s = sd[k][a];
             f.syger(1.0 / (s * s), &z, &z, 1.0);
         }
     }
+    // Eq. 9 defines the disturbance as zero at zero command: c^T theta = 0 with c the model's
+    // regressors at u = 0. The constrained bound is U (U^T F U)^-1 U^T, with U a basis of the
+    // constraint's null space (eliminate the parameter with the largest coefficient).
+    net.partition.weights_into(data.spec.normalize(data.spec.off_raw), &mut phi);
+    let mut c = vec![0.0; n + 1];
+    let mut x0 = vec![0.0; p];
+    data.spec.off_regressors(&mut x0);
+    for i in 0..m {
+        for j in 0..p {
+            c[i * p + j] = phi[i] * x0[j];
+        }
+    }
+    let pivot = (0..n).max_by(|&i, &j| c[i].abs().total_cmp(&c[j].abs()))?;
+    if c[pivot].abs() < 1e-12 {
+        return None;
+    }
+    let free: Vec<usize> = (0..=n).filter(|&i| i != pivot).collect();
+    let u = DMatrix::from_fn(n + 1, n, |row, col| {
+        if row == pivot {
+            -c[free[col]] / c[pivot]
+        } else if row == free[col] {
+            1.0
+        } else {
+            0.0
+        }
+    });
     let mut out: [Vec<f64>; 3] = Default::default();
-    for (a, f) in fisher.into_iter().enumerate() {
-        // The bound is the covariance F^-1 itself; its diagonal comes from Cholesky solves
-        // against the unit vectors.
-        let chol = f.cholesky()?;
-        let cov = chol.solve(&DMatrix::identity(n, n));
+    for (a, mut f) in fisher.into_iter().enumerate() {
+        // `syger` filled the lower triangle only.
+        f.fill_upper_triangle_with_lower_triangle();
+        let reduced = u.transpose() * &f * &u;
+        // The bound is a covariance, (U^T F U)^-1 itself; it comes from Cholesky solves.
+        let chol = reduced.cholesky()?;
+        let cov = &u * chol.solve(&u.transpose());
         out[a] = (0..n).map(|i| cov[(i, i)]).collect();
     }
     Some(out)
