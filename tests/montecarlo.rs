@@ -26,13 +26,23 @@ fn weighted_global_estimation_reaches_the_cramer_rao_bound_and_the_others_do_not
     let (w, g) = (ratio("global-weighted"), ratio("global"));
     // 160 runs estimate a variance to about +-11 % per parameter; the trace averages several.
     assert!((0.8..1.25).contains(&w), "weighted efficiency {w}");
-    assert!((0.8..1.25).contains(&mse("global-weighted")), "weighted mse ratio {}", mse("global-weighted"));
-    assert!(g > w * 1.1, "unweighted {g} should be clearly above weighted {w}");
+    assert!(
+        (0.8..1.25).contains(&mse("global-weighted")),
+        "weighted mse ratio {}",
+        mse("global-weighted")
+    );
+    assert!(
+        g > w * 1.1,
+        "unweighted {g} should be clearly above weighted {w}"
+    );
     // The paper's local estimation does not aim at the tables' parameters: its error is bias.
     let local = s.method("paper-local").unwrap();
     let bias2: f64 = local.parameters.iter().map(|p| p.bias * p.bias).sum();
     let var: f64 = local.parameters.iter().map(|p| p.sd * p.sd).sum();
-    assert!(bias2 > var, "local estimation: bias^2 {bias2} vs variance {var}");
+    assert!(
+        bias2 > var,
+        "local estimation: bias^2 {bias2} vs variance {var}"
+    );
     // The bound is a bound: no parameter of an unbiased estimator spreads less (within the
     // sampling error of 160 runs, about 6 % on an sd).
     for m in ["global", "global-weighted"] {
@@ -55,7 +65,11 @@ fn results_do_not_depend_on_thread_count_and_shards_merge_to_the_whole() {
     let one = run_study(&whole, Some(1), &Silent).unwrap();
     let two = run_study(&whole, Some(2), &Silent).unwrap();
     let bytes = |r: &StudyResult| magstand_study::runs_csv::to_bytes(&r.outcomes).unwrap();
-    assert_eq!(bytes(&one), bytes(&two), "runs.csv differs between 1 and 2 threads");
+    assert_eq!(
+        bytes(&one),
+        bytes(&two),
+        "runs.csv differs between 1 and 2 threads"
+    );
 
     let dir = tempfile::tempdir().unwrap();
     let mut shard_results = Vec::new();
@@ -107,5 +121,8 @@ fn a_corrupted_runs_file_is_refused_with_row_and_column() {
     lines[2] = cells.join(",");
     std::fs::write(&path, lines.join("\n")).unwrap();
     let e = StudyResult::read(dir.path()).unwrap_err().to_string();
-    assert!(e.contains("row 3") && e.contains("rmse_ut") && e.contains("runs.csv"), "{e}");
+    assert!(
+        e.contains("row 3") && e.contains("rmse_ut") && e.contains("runs.csv"),
+        "{e}"
+    );
 }

@@ -145,6 +145,7 @@ fn study(a: StudyArgs) -> Result<()> {
         let result = run_study(valid, a.threads, &bar)?;
         drop(bar);
         let summary = result.write(&dir)?.expect("a sweep runs whole studies");
+        write_figures(&summary, &result, &dir)?;
         table.push((v.to_string(), summary));
     }
     let text = sweep_table(key, &table);
@@ -179,11 +180,14 @@ fn finish(result: &StudyResult, out: &Path, json: Option<&Path>) -> Result<()> {
             if let Some(j) = json {
                 write_summary(&summary, j)?;
             }
+            let figures = write_figures(&summary, result, out)?;
             print!("{}", summary_table(&summary));
             println!(
-                "\nwrote {} and {}",
+                "\nwrote {}, {} and {} figures ({})",
                 out.join("runs.csv").display(),
-                out.join("SUMMARY.json").display()
+                out.join("SUMMARY.json").display(),
+                figures.len(),
+                figures.join(", ")
             );
         }
         None => {
@@ -197,6 +201,30 @@ fn finish(result: &StudyResult, out: &Path, json: Option<&Path>) -> Result<()> {
         }
     }
     Ok(())
+}
+
+/// Writes the study's figures as SVG files next to its tables; returns their file names.
+pub fn write_figures(summary: &Summary, result: &StudyResult, out: &Path) -> Result<Vec<String>> {
+    let mut figures = vec![(
+        "error-vs-throttle.svg".to_string(),
+        magstand_report::montecarlo::error_against_throttle(summary)?,
+    )];
+    for m in &summary.methods {
+        if !m.parameters.is_empty() {
+            figures.push((
+                format!("parameter-errors-{}.svg", m.method),
+                magstand_report::montecarlo::parameter_errors(
+                    summary,
+                    &result.outcomes,
+                    &m.method,
+                )?,
+            ));
+        }
+    }
+    for (name, svg) in &figures {
+        magstand_core::atomic_file::write_bytes(&out.join(name), svg.as_bytes())?;
+    }
+    Ok(figures.into_iter().map(|(n, _)| n).collect())
 }
 
 fn fmt_opt(v: Option<f64>, digits: usize) -> String {

@@ -21,7 +21,9 @@
 use magstand_core::Recording;
 use magstand_core::rbf::RbfPartition;
 use magstand_ident::local_linear;
-use magstand_ident::{Dataset, Estimation, InputKind, OFF_COMMAND, LocalLinearNet, Model, Structure};
+use magstand_ident::{
+    Dataset, Estimation, InputKind, LocalLinearNet, Model, OFF_COMMAND, Structure,
+};
 use nalgebra::{DMatrix, DVector};
 
 /// Number of parameters per axis of the fixed structure.
@@ -125,7 +127,8 @@ fn fisher_inverse_diagonal(
     // Eq. 9 defines the disturbance as zero at zero command: c^T theta = 0 with c the model's
     // regressors at u = 0. The constrained bound is U (U^T F U)^-1 U^T, with U a basis of the
     // constraint's null space (eliminate the parameter with the largest coefficient).
-    net.partition.weights_into(data.spec.normalize(data.spec.off_raw), &mut phi);
+    net.partition
+        .weights_into(data.spec.normalize(data.spec.off_raw), &mut phi);
     let mut c = vec![0.0; n + 1];
     let mut x0 = vec![0.0; p];
     data.spec.off_regressors(&mut x0);
