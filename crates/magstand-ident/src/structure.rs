@@ -125,26 +125,32 @@ pub fn choose(
                 loss[i] += w * e;
             }
         }
-        let count: Vec<usize> = intervals
-            .iter()
-            .map(|&(a, b)| {
-                (0..data.len())
-                    .filter(|&k| fit_row(k) && data.u[k] >= a && data.u[k] <= b)
-                    .count()
-            })
-            .collect();
-        // Split the worst interval that still has data on both sides of its middle.
+        // Split the worst interval whose halves each keep a determined local line: enough
+        // rows, at two or more distinct inputs (a stair gives one input per level, and a line
+        // through a single level has no slope).
+        let determined = |a: f64, b: f64, closed_right: bool| {
+            let mut n = 0;
+            let mut first = None;
+            let mut distinct = false;
+            for k in (0..data.len()).filter(|&k| fit_row(k)) {
+                let u = data.u[k];
+                if u >= a && (u < b || (closed_right && u <= b)) {
+                    n += 1;
+                    match first {
+                        None => first = Some(u),
+                        Some(f) if (u - f).abs() > 1e-9 => distinct = true,
+                        _ => {}
+                    }
+                }
+            }
+            n >= min_rows && distinct
+        };
         let mut order: Vec<usize> = (0..intervals.len()).collect();
         order.sort_by(|&a, &b| loss[b].total_cmp(&loss[a]));
         let splittable = order.into_iter().find(|&i| {
-            count[i] >= 2 * min_rows && {
-                let (a, b) = intervals[i];
-                let mid = 0.5 * (a + b);
-                let left = (0..data.len()).any(|k| fit_row(k) && data.u[k] >= a && data.u[k] < mid);
-                let right =
-                    (0..data.len()).any(|k| fit_row(k) && data.u[k] > mid && data.u[k] <= b);
-                left && right
-            }
+            let (a, b) = intervals[i];
+            let mid = 0.5 * (a + b);
+            determined(a, mid, false) && determined(mid, b, true)
         });
         let Some(i) = splittable else { break };
         let (a, b) = intervals[i];

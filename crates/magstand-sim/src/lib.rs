@@ -98,6 +98,10 @@ pub mod builtin {
             "asymmetric-wiring",
             include_str!("../../../scenarios/asymmetric-wiring.toml"),
         ),
+        (
+            "fleet-stair",
+            include_str!("../../../scenarios/fleet-stair.toml"),
+        ),
     ];
 
     /// The TOML text of a shipped scenario by name.
