@@ -250,13 +250,15 @@ impl ValidFitConfig {
     }
 
     /// One structure fitted on `rows`, with inverse-variance reweighting when configured.
-    /// Returns the structure and the noise model of its residuals.
+    /// Returns the structure, and with `want_sd` (or when reweighting) the noise model of its
+    /// residuals and the residuals themselves.
     fn fit_rows(
         &self,
         data: &Dataset,
         rows: &dyn Fn(usize) -> bool,
         select: &dyn Fn(usize) -> bool,
-    ) -> Result<(Structure, Option<SdModel>), IdentError> {
+        want_sd: bool,
+    ) -> Result<(Structure, Option<SdModel>, Option<Vec<Vec3>>), IdentError> {
         let unit = |_: usize| Vec3::repeat(1.0);
         let fit_with = |weight: &dyn Fn(usize) -> Vec3,
                         weight_at: &dyn Fn(f64) -> Vec3|
@@ -302,15 +304,20 @@ impl ValidFitConfig {
         let residual_sd = |s: &Structure| {
             let m = Model::new("", data.spec.clone(), data.reference_ut, s.clone(), None);
             let r = m.residuals(data);
-            SdModel::fit(&data.u, &r, rows, self.0.sd_knots)
+            (SdModel::fit(&data.u, &r, rows, self.0.sd_knots), r)
         };
         let mut s = fit_with(&unit, &|_| Vec3::repeat(1.0))?;
-        let mut sd = residual_sd(&s);
         let is_local_linear = matches!(
             self.0.family,
             Family::LocalLinear { .. } | Family::Automatic { .. }
         );
-        if self.0.weighted && is_local_linear {
+        let reweight = self.0.weighted && is_local_linear;
+        // The noise model costs a pass over the data: only when it weights or is kept.
+        if !reweight && !want_sd {
+            return Ok((s, None, None));
+        }
+        let (mut sd, mut r) = residual_sd(&s);
+        if reweight {
             // Two reweighting passes: the second noise model comes from residuals of a fit that
             // no longer over-follows the noisiest samples.
             for _ in 0..2 {
@@ -318,10 +325,10 @@ impl ValidFitConfig {
                 let w_at = |u: f64| noise.sd(u).map(|s| 1.0 / (s * s));
                 let w = |k: usize| w_at(data.u[k]);
                 s = fit_with(&w, &w_at)?;
-                sd = residual_sd(&s);
+                (sd, r) = residual_sd(&s);
             }
         }
-        Ok((s, sd))
+        Ok((s, sd, Some(r)))
     }
 }
 
@@ -334,10 +341,10 @@ impl Fit for ValidFitConfig {
         let blocks = data.time_blocks();
         let select = |k: usize| blocks[k] % 5 == 3;
         let train = |k: usize| !holdout[k];
-        let (s_train, _) = self.fit_rows(data, &train, &select)?;
+        let (s_train, _, _) = self.fit_rows(data, &train, &select, false)?;
         let train_model = Model::new("", data.spec.clone(), data.reference_ut, s_train, None);
         let r_train = train_model.residuals(data);
-        let (structure, sd) = self.fit_rows(data, &|_| true, &select)?;
+        let (structure, sd, residuals) = self.fit_rows(data, &|_| true, &select, true)?;
         let mut model = Model::new(
             &self.method_name(),
             data.spec.clone(),
@@ -345,7 +352,7 @@ impl Fit for ValidFitConfig {
             structure,
             sd,
         );
-        let r = model.residuals(data);
+        let r = residuals.unwrap_or_else(|| model.residuals(data));
         let holdout_rows = holdout.iter().filter(|h| **h).count();
         let rms = |rows: &mut dyn Iterator<Item = Vec3>, n: usize| -> [f64; 3] {
             let s = rows.fold(Vec3::zeros(), |acc, v| acc + v.component_mul(&v));
