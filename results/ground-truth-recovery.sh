@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Ground-truth recovery on the physics scenarios: identify on a stair going up, validate on a
 # stair going down and on random steps, 20 Monte Carlo runs each (fresh seeds per run).
-# Usage: bash results/ground-truth-recovery.sh OUTDIR   (about 6 minutes on 2 cores)
+# Usage: bash results/ground-truth-recovery.sh OUTDIR   (about 2 minutes on 2 cores)
 set -euo pipefail
 out=${1:-ground-truth-recovery}
 magstand() { cargo run --release --quiet -- "$@"; }
