@@ -1,15 +1,10 @@
 //! The command line on bad input: a clear message naming the key, file, row or column, a
 //! non-zero exit, no panic, and nothing written.
-use std::process::Command;
+mod common;
 
 fn magstand(args: &[&str]) -> (bool, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_magstand"))
-        .args(args)
-        .output()
-        .expect("runs");
-    let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
-    assert!(!stderr.contains("panicked"), "panic: {stderr}");
-    (out.status.success(), stderr)
+    let r = common::magstand(args);
+    (r.ok, r.stderr)
 }
 
 #[test]

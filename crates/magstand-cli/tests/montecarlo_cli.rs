@@ -1,20 +1,11 @@
 //! `magstand montecarlo` from the command line: bad settings fail before any run with the
 //! setting named and nothing written; a sharded study merges into the single-machine summary;
 //! a sweep tabulates every value.
-use std::process::Command;
+mod common;
 
 fn magstand(args: &[&str]) -> (bool, String, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_magstand"))
-        .args(args)
-        .output()
-        .expect("runs");
-    let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
-    assert!(!stderr.contains("panicked"), "panic: {stderr}");
-    (
-        out.status.success(),
-        String::from_utf8_lossy(&out.stdout).into_owned(),
-        stderr,
-    )
+    let r = common::magstand(args);
+    (r.ok, r.stdout, r.stderr)
 }
 
 const QUICK: [&str; 6] = [

@@ -26,6 +26,7 @@ mod error;
 pub mod rbf;
 mod recording;
 pub mod recording_csv;
+pub mod seeds;
 
 pub use error::CoreError;
 pub use recording::{GroundTruth, ImuColumns, Recording};

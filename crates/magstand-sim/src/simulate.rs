@@ -25,10 +25,7 @@ enum Stream {
 
 /// A generator for one stream of one seed (SplitMix64 mixing of seed and stream).
 fn stream_rng(seed: u64, stream: Stream) -> Xoshiro256PlusPlus {
-    let mut z = seed ^ (stream as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15);
-    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    Xoshiro256PlusPlus::seed_from_u64(z ^ (z >> 31))
+    Xoshiro256PlusPlus::seed_from_u64(magstand_core::seeds::derive(seed, stream as u64))
 }
 
 /// Receives progress while a simulation runs; kept apart from the simulator so that a command

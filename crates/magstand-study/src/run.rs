@@ -52,10 +52,7 @@ pub struct Figures {
 /// A well-mixed 64-bit seed from the study seed and an index (SplitMix64 finalizer), so runs
 /// get unrelated random streams whatever their order or shard.
 pub fn derive_seed(seed: u64, index: u64) -> u64 {
-    let mut z = seed ^ index.wrapping_add(1).wrapping_mul(0x9E37_79B9_7F4A_7C15);
-    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    z ^ (z >> 31)
+    magstand_core::seeds::derive(seed, index.wrapping_add(1))
 }
 
 /// The identification and validation scenarios of run `run`, with its parameter draws.
@@ -163,23 +160,5 @@ fn figures(model: &magstand_ident::Model, valid: &Recording, bound: Option<&Boun
         bin_rmse_ut,
         crlb_diag: param_error.as_ref().and(bound.map(|b| b.crlb_diag.clone())),
         param_error,
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn derived_seeds_differ_for_neighbouring_indices_and_seeds() {
-        let mut seen = std::collections::HashSet::new();
-        for s in 0..20u64 {
-            for i in 0..200u64 {
-                assert!(
-                    seen.insert(derive_seed(s, i)),
-                    "collision at seed {s} index {i}"
-                );
-            }
-        }
     }
 }
