@@ -106,5 +106,30 @@ pub fn run(a: DemoArgs) -> Result<()> {
         model_path.display(),
         comp_path.display()
     );
+    let mut prov = crate::report_cmd::provenance();
+    prov.extend([
+        ("scenario".to_string(), ident_s.origin().to_string()),
+        (
+            "identification".to_string(),
+            format!("stair up, seed {} ({})", a.seed, ident_path.display()),
+        ),
+        (
+            "validation".to_string(),
+            format!("stair down, seed {} ({})", a.seed + 1, valid_path.display()),
+        ),
+        (
+            "model".to_string(),
+            format!("{} ({})", model_path.display(), model.method),
+        ),
+    ]);
+    let page = crate::report_cmd::write_report(
+        &valid,
+        &valid_path.display().to_string(),
+        Some(&model),
+        None,
+        prov,
+        &a.out.join("report"),
+    )?;
+    println!("report: {}", page.display());
     Ok(())
 }

@@ -13,6 +13,7 @@ mod files;
 mod fit_cmd;
 mod montecarlo_cmd;
 mod progress;
+mod report_cmd;
 mod simulate_cmd;
 
 /// Magnetometer disturbance from motor currents: simulate a restrained test stand, identify and
@@ -34,6 +35,8 @@ enum Command {
     Compensate(compensate_cmd::CompensateArgs),
     /// Monte Carlo accuracy study against the Cramer-Rao bound (parallel, shardable).
     Montecarlo(montecarlo_cmd::MonteCarloArgs),
+    /// Write an HTML report with the figures of a recording, a model and a study.
+    Report(report_cmd::ReportArgs),
     /// Run the embedded paper-like scenario end to end and print what it shows.
     Demo(demo::DemoArgs),
 }
@@ -45,6 +48,7 @@ fn main() -> ExitCode {
         Command::Fit(a) => fit_cmd::run(a),
         Command::Compensate(a) => compensate_cmd::run(a),
         Command::Montecarlo(a) => montecarlo_cmd::run(a),
+        Command::Report(a) => report_cmd::run(a),
         Command::Demo(a) => demo::run(a),
     };
     match result {

@@ -167,6 +167,21 @@ impl Model {
         }
     }
 
+    /// Predicted disturbance at a raw input value (throttle or amperes; every motor at that
+    /// command for a per-motor model), for curves along the input.
+    pub fn dist_at_input(&self, raw: f64, s: &mut Scratch) -> Vec3 {
+        let off = self.off_output(s);
+        let u = self.input.normalize(raw);
+        if self.input.kind == crate::InputKind::Motors {
+            s.x.fill(raw);
+        } else {
+            s.x[0] = u;
+        }
+        let last = s.x.len() - 1;
+        s.x[last] = 1.0;
+        self.output(u, &s.x, &mut s.phi) - off
+    }
+
     /// Predicted disturbance for every row.
     pub fn dist_column(&self, rec: &Recording) -> Vec<Vec3> {
         let mut s = self.scratch();

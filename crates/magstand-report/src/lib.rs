@@ -16,8 +16,13 @@
 //! ```
 #![warn(missing_docs)]
 
+mod assemble;
 pub mod chart;
 mod error;
+pub mod figures;
 pub mod montecarlo;
+pub mod page;
 
+pub use assemble::{ReportInputs, build};
 pub use error::ReportError;
+pub use page::{Figure, Report, Section};
