@@ -10,7 +10,7 @@ use crate::ReportError;
 use crate::chart::{Series, XyChart};
 
 /// At most this many points per series, so a long recording still gives a light figure.
-pub const MAX_POINTS: usize = 3000;
+pub const MAX_POINTS: usize = 1200;
 
 fn stride(n: usize) -> usize {
     n.div_ceil(MAX_POINTS).max(1)
