@@ -116,3 +116,77 @@ fn shards_merge_to_the_single_machine_summary_and_sweeps_tabulate() {
     };
     assert!(p50("2.0") < p50("0.5"), "{table}");
 }
+
+#[test]
+fn a_report_shows_a_study_beside_a_recording_and_model() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = |s: &str| dir.path().join(s).to_str().unwrap().to_string();
+    let mut args = vec![
+        "montecarlo",
+        "--scenario",
+        "builtin:czyba2015-tables",
+        "--runs",
+        "3",
+    ];
+    args.extend(QUICK);
+    let study_dir = p("study");
+    args.extend(["--out", &study_dir]);
+    let (ok, _, err) = magstand(&args);
+    assert!(ok, "{err}");
+    let sim = p("sim");
+    let (ok, _, err) = magstand(&[
+        "simulate",
+        "--scenario",
+        "builtin:czyba2015-tables",
+        "--out",
+        &sim,
+        "--set",
+        "program.dwell_s=1.0",
+        "--set",
+        "stand.enabled=false",
+    ]);
+    assert!(ok, "{err}");
+    let rec = p("sim/recording.csv");
+    let model = p("m.json");
+    let (ok, _, err) = magstand(&["fit", "--recording", &rec, "--model-out", &model]);
+    assert!(ok, "{err}");
+    let out = p("report");
+    let (ok, stdout, err) = magstand(&[
+        "report",
+        "--recording",
+        &rec,
+        "--model",
+        &model,
+        "--montecarlo",
+        &study_dir,
+        "--out",
+        &out,
+    ]);
+    assert!(ok && stdout.contains("index.html"), "{err}");
+    let html = std::fs::read_to_string(dir.path().join("report/index.html")).unwrap();
+    for needle in [
+        "The recording",
+        "The model",
+        "Compensation",
+        "Monte Carlo study",
+        "id=\"fig-mc-error-vs-throttle\"",
+        "id=\"fig-mc-parameter-errors-global-weighted\"",
+        "id=\"fig-rbf-weights\"",
+        "id=\"fig-heading-vs-throttle\"",
+        "magstand report --recording",
+    ] {
+        assert!(html.contains(needle), "report lacks {needle}");
+    }
+    assert!(dir.path().join("report/mc-error-vs-throttle.svg").exists());
+    // A report never writes over its inputs.
+    let (ok, _, err) = magstand(&["report", "--recording", &rec, "--out", &p("sim")]);
+    assert!(ok, "{err}");
+    let (ok, _, err) = magstand(&[
+        "report",
+        "--recording",
+        &p("report/index.html"),
+        "--out",
+        &p("report"),
+    ]);
+    assert!(!ok && err.contains("index.html"), "{err}");
+}
