@@ -9,6 +9,7 @@ use clap::{Parser, Subcommand};
 
 mod compensate_cmd;
 mod demo;
+mod export_cmd;
 mod files;
 mod fit_cmd;
 mod montecarlo_cmd;
@@ -33,6 +34,8 @@ enum Command {
     Fit(fit_cmd::FitArgs),
     /// Remove a model's predicted disturbance from a recording.
     Compensate(compensate_cmd::CompensateArgs),
+    /// Export a model as PX4 or ArduPilot parameters, or as a C header.
+    Export(export_cmd::ExportArgs),
     /// Monte Carlo accuracy study against the Cramer-Rao bound (parallel, shardable).
     Montecarlo(montecarlo_cmd::MonteCarloArgs),
     /// Write an HTML report with the figures of a recording, a model and a study.
@@ -47,6 +50,7 @@ fn main() -> ExitCode {
         Command::Simulate(a) => simulate_cmd::run(a),
         Command::Fit(a) => fit_cmd::run(a),
         Command::Compensate(a) => compensate_cmd::run(a),
+        Command::Export(a) => export_cmd::run(a),
         Command::Montecarlo(a) => montecarlo_cmd::run(a),
         Command::Report(a) => report_cmd::run(a),
         Command::Demo(a) => demo::run(a),
