@@ -136,6 +136,22 @@ pub struct Dataset {
 /// A row counts as motors-off when every command is at most this.
 pub const OFF_COMMAND: f64 = 1e-6;
 
+/// Whether every motor command of `row` is off (at most [`OFF_COMMAND`]).
+pub fn motors_off(rec: &Recording, row: usize) -> bool {
+    rec.thr.iter().all(|m| m[row] <= OFF_COMMAND)
+}
+
+/// The motors-off rows of a recording.
+pub fn motors_off_rows(rec: &Recording) -> Vec<usize> {
+    (0..rec.len()).filter(|&r| motors_off(rec, r)).collect()
+}
+
+/// The eq. 9 reference: the mean field over the motors-off rows, or `None` without any.
+pub fn motors_off_reference(rec: &Recording, off_rows: &[usize]) -> Option<Vec3> {
+    (!off_rows.is_empty())
+        .then(|| off_rows.iter().map(|&r| rec.mag_ut[r]).sum::<Vec3>() / off_rows.len() as f64)
+}
+
 /// Minimum rows a fit accepts.
 pub const MIN_ROWS: usize = 20;
 
@@ -160,13 +176,8 @@ impl Dataset {
         if kind == InputKind::Motors && rec.overall_only {
             return Err(data_err("per-motor inputs need thr_1..thr_N columns; the recording has only the overall `thr`".into()));
         }
-        let off: Vec<usize> = (0..rec.len())
-            .filter(|&r| rec.thr.iter().all(|m| m[r] <= OFF_COMMAND))
-            .collect();
-        if off.is_empty() {
-            return Err(data_err("no motors-off rows (every thr = 0) to take the eq. 9 reference from; record a few seconds with the motors off".into()));
-        }
-        let reference_ut = off.iter().map(|&r| rec.mag_ut[r]).sum::<Vec3>() / off.len() as f64;
+        let off = motors_off_rows(rec);
+        let reference_ut = motors_off_reference(rec, &off).ok_or_else(|| data_err("no motors-off rows (every thr = 0) to take the eq. 9 reference from; record a few seconds with the motors off".into()))?;
         let (lo, hi, off_raw) = match kind {
             InputKind::Throttle | InputKind::Motors => (0.0, 1.0, 0.0),
             InputKind::Current => {

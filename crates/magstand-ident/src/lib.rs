@@ -55,7 +55,10 @@ pub mod structure;
 pub use config::{
     Family, Fit, FitConfig, Predict, ValidFitConfig, evenly_spaced_centers, paper_ratio_width,
 };
-pub use dataset::{Dataset, InputKind, InputSpec, MIN_ROWS, OFF_COMMAND};
+pub use dataset::{
+    Dataset, InputKind, InputSpec, MIN_ROWS, OFF_COMMAND, motors_off, motors_off_reference,
+    motors_off_rows,
+};
 pub use error::IdentError;
 pub use local_linear::{Estimation, LocalLinearNet};
 pub use model::{FORMAT, FitSummary, Model, Scratch, Structure, VERSION};

@@ -2,7 +2,7 @@
 //! apparent heading error, ArduPilot-style interference, and errors against ground truth.
 use serde::Serialize;
 
-use crate::dataset::OFF_COMMAND;
+use crate::dataset::{motors_off, motors_off_reference, motors_off_rows};
 use crate::model::Model;
 use magstand_core::{Recording, Vec3};
 
@@ -99,14 +99,9 @@ impl Evaluation {
     /// when it has motors-off rows (as the paper does for each series), else the model's.
     pub fn new(model: &Model, rec: &Recording) -> Self {
         let n = rec.len();
-        let off_rows: Vec<usize> = (0..n)
-            .filter(|&r| rec.thr.iter().all(|m| m[r] <= OFF_COMMAND))
-            .collect();
-        let reference = if off_rows.is_empty() {
-            Vec3::from(model.reference_ut)
-        } else {
-            off_rows.iter().map(|&r| rec.mag_ut[r]).sum::<Vec3>() / off_rows.len() as f64
-        };
+        let off_rows = motors_off_rows(rec);
+        let reference =
+            motors_off_reference(rec, &off_rows).unwrap_or(Vec3::from(model.reference_ut));
         // The stand is restrained: its tilt is the mean specific force over the motors-off rows
         // (or all rows). A per-sample accelerometer reading carries rotor vibration of several
         // m/s^2, which would swing a tilt-compensated heading by tens of degrees.
@@ -143,7 +138,7 @@ impl Evaluation {
             s.1 += dmag;
             s.2 += dist[r];
             s.3 += e20;
-            if rec.thr.iter().any(|m| m[r] > OFF_COMMAND) {
+            if !motors_off(rec, r) {
                 e20_sq += e20.component_mul(&e20);
                 running += 1;
             }

@@ -4,7 +4,7 @@
 //! before and after compensation.
 use magstand_core::{AXES, Recording, Vec3};
 use magstand_ident::metrics::Evaluation;
-use magstand_ident::{InputKind, Model, OFF_COMMAND, Structure};
+use magstand_ident::{InputKind, Model, Structure, motors_off_rows};
 
 use crate::ReportError;
 use crate::chart::{Series, XyChart};
@@ -17,11 +17,8 @@ fn stride(n: usize) -> usize {
 }
 
 /// The motors-off mean field (eq. 9 reference), or `None` without motors-off rows.
-pub fn motors_off_reference(rec: &Recording) -> Option<Vec3> {
-    let off: Vec<usize> = (0..rec.len())
-        .filter(|&r| rec.thr.iter().all(|m| m[r] <= OFF_COMMAND))
-        .collect();
-    (!off.is_empty()).then(|| off.iter().map(|&r| rec.mag_ut[r]).sum::<Vec3>() / off.len() as f64)
+fn motors_off_reference(rec: &Recording) -> Option<Vec3> {
+    magstand_ident::motors_off_reference(rec, &motors_off_rows(rec))
 }
 
 /// Motor commands against time.

@@ -22,7 +22,7 @@ use magstand_core::Recording;
 use magstand_core::rbf::RbfPartition;
 use magstand_ident::local_linear;
 use magstand_ident::{
-    Dataset, Estimation, InputKind, LocalLinearNet, Model, OFF_COMMAND, Structure,
+    Dataset, Estimation, InputKind, LocalLinearNet, Model, Structure, motors_off,
 };
 use nalgebra::{DMatrix, DVector};
 
@@ -82,9 +82,7 @@ pub fn fixed_structure_bound(rec: &Recording) -> Option<Bound> {
         &inverse_variance,
     )
     .ok()?;
-    let off: Vec<bool> = (0..rec.len())
-        .map(|r| rec.thr.iter().all(|m| m[r] <= OFF_COMMAND))
-        .collect();
+    let off: Vec<bool> = (0..rec.len()).map(|r| motors_off(rec, r)).collect();
     let crlb_diag = fisher_inverse_diagonal(&data, &off, &net, sd)?;
     Some(Bound {
         truth: std::array::from_fn(|a| net.coefficients[a].iter().flatten().copied().collect()),
