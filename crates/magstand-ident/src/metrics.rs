@@ -98,7 +98,14 @@ impl Evaluation {
     /// Evaluates `model` on `rec`. The eq. 9 reference is the recording's own motors-off mean
     /// when it has motors-off rows (as the paper does for each series), else the model's.
     pub fn new(model: &Model, rec: &Recording) -> Self {
+        Self::from_prediction(model, rec, &model.dist_column(rec))
+    }
+
+    /// The same, from the model's predicted disturbance per row (`model.dist_column(rec)`),
+    /// for a caller that needs the prediction too.
+    pub fn from_prediction(model: &Model, rec: &Recording, dist: &[Vec3]) -> Self {
         let n = rec.len();
+        assert_eq!(dist.len(), n, "one predicted disturbance per row of the recording");
         let off_rows = motors_off_rows(rec);
         let reference =
             motors_off_reference(rec, &off_rows).unwrap_or(Vec3::from(model.reference_ut));
@@ -124,7 +131,6 @@ impl Evaluation {
                 .fold((0.0, 0.0), |(s, c), h| (s + h.sin(), c + h.cos()));
             s.atan2(c).to_degrees().rem_euclid(360.0)
         };
-        let dist = model.dist_column(rec);
         let (centres, idx) = level_of(rec);
         let mut sums = vec![(0usize, Vec3::zeros(), Vec3::zeros(), Vec3::zeros()); centres.len()];
         let mut e20_sq = Vec3::zeros();

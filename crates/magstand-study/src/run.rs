@@ -121,12 +121,12 @@ pub fn run_one(study: &ValidStudy, run: usize) -> Result<Vec<MethodOutcome>, Stu
 }
 
 fn figures(model: &magstand_ident::Model, valid: &Recording, bound: Option<&Bound>) -> Figures {
-    let ev = Evaluation::new(model, valid);
+    let predicted = model.dist_column(valid);
+    let ev = Evaluation::from_prediction(model, valid, &predicted);
     let truth = valid
         .truth
         .as_ref()
         .expect("simulated recordings carry the truth");
-    let predicted = model.dist_column(valid);
     let mut sum = [0.0; BINS];
     let mut count = [0usize; BINS];
     let mut total = 0.0;
