@@ -105,7 +105,11 @@ impl Evaluation {
     /// for a caller that needs the prediction too.
     pub fn from_prediction(model: &Model, rec: &Recording, dist: &[Vec3]) -> Self {
         let n = rec.len();
-        assert_eq!(dist.len(), n, "one predicted disturbance per row of the recording");
+        assert_eq!(
+            dist.len(),
+            n,
+            "one predicted disturbance per row of the recording"
+        );
         let off_rows = motors_off_rows(rec);
         let reference =
             motors_off_reference(rec, &off_rows).unwrap_or(Vec3::from(model.reference_ut));

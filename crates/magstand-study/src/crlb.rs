@@ -47,12 +47,15 @@ pub struct Bound {
 pub fn flatten(model: &Model) -> Option<[Vec<f64>; 3]> {
     match &model.structure {
         Structure::LocalLinear(net) if net.partition.len() * 2 == PARAMS_PER_AXIS => {
-            Some(std::array::from_fn(|a| {
-                net.coefficients[a].iter().flatten().copied().collect()
-            }))
+            Some(net_parameters(net))
         }
         _ => None,
     }
+}
+
+/// A local linear network's coefficients per axis, local model after local model.
+fn net_parameters(net: &LocalLinearNet) -> [Vec<f64>; 3] {
+    std::array::from_fn(|a| net.coefficients[a].iter().flatten().copied().collect())
 }
 
 /// The bound for the paper's fixed structure on `rec`, or `None` when the recording has no
@@ -85,7 +88,7 @@ pub fn fixed_structure_bound(rec: &Recording) -> Option<Bound> {
     let off: Vec<bool> = (0..rec.len()).map(|r| motors_off(rec, r)).collect();
     let crlb_diag = fisher_inverse_diagonal(&data, &off, &net, sd)?;
     Some(Bound {
-        truth: std::array::from_fn(|a| net.coefficients[a].iter().flatten().copied().collect()),
+        truth: net_parameters(&net),
         crlb_diag,
     })
 }
