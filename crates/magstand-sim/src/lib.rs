@@ -13,6 +13,8 @@
 //! | [`noise`] | sensor noise mu and load-dependent noise eta (eq. 8) |
 //! | [`thermal`] | board heating and magnetometer offset drift |
 //! | [`hysteresis`] | play-operator hysteresis of nearby steel |
+//! | [`interference`] | an alternating field from equipment beside the stand |
+//! | [`replay`] | the electrical part alone on a recording's own commands, for the diagnosis |
 //! | [`magnetometer`] | Earth field, hard and soft iron, range, quantization, data rate |
 //! | [`stand`] | the frame as a rapier3d rigid body on a compliant mount |
 //!
@@ -45,10 +47,12 @@
 pub mod battery;
 mod error;
 pub mod hysteresis;
+pub mod interference;
 pub mod magnetometer;
 pub mod motor;
 pub mod noise;
 pub mod program;
+pub mod replay;
 pub mod scenario;
 mod simulate;
 pub mod stand;

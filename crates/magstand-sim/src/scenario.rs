@@ -11,6 +11,7 @@ use serde::{Deserialize, Serialize};
 use crate::battery::SupplyParams;
 use crate::error::{Checker, SimError};
 use crate::hysteresis::HysteresisParams;
+use crate::interference::InterferenceParams;
 use crate::magnetometer::MagnetometerParams;
 use crate::motor::MotorParams;
 use crate::noise::NoiseParams;
@@ -126,6 +127,9 @@ pub struct Scenario {
     /// Ferromagnetic hysteresis.
     #[serde(default)]
     pub hysteresis: HysteresisParams,
+    /// Alternating field from equipment beside the stand.
+    #[serde(default)]
+    pub interference: InterferenceParams,
     /// The sensor.
     #[serde(default)]
     pub magnetometer: MagnetometerParams,
@@ -271,6 +275,7 @@ impl Scenario {
         self.noise.check(&c)?;
         self.thermal.check(&c)?;
         self.hysteresis.check(&c)?;
+        self.interference.check(&c)?;
         self.stand.check(&c, self.physics_hz)?;
         c.range("logging.mag_delay_s", self.logging.mag_delay_s, 0.0, 10.0)?;
         self.study.check(&c)?;

@@ -136,7 +136,9 @@ pub fn simulate_observed(s: &ValidScenario, seed: u64, observer: &mut dyn Observ
         };
         let hyst_field = soft * hysteresis.step(&p.hysteresis, total_a);
         let snapshot = Snapshot {
-            field: soft * (body.attitude.inverse() * earth + avionics_field) + hard,
+            field: soft
+                * (body.attitude.inverse() * earth + avionics_field + p.interference.field_ut(t))
+                + hard,
             dist: motor_field + hyst_field + p.thermal.offset_ut(thermal.temp_c),
             sd: Vec3::from(p.noise.sd_ut(total_a, throttle)),
         };

@@ -105,6 +105,11 @@ pub struct WiringParams {
     /// Circular loops.
     #[serde(rename = "loop", default)]
     pub loops: Vec<LoopParams>,
+    /// Per-motor gains added to what the geometry gives, µT per ampere (x, y, z), one entry
+    /// per motor or none. This is how a fitted motor asymmetry is switched on when the
+    /// geometry that causes it is unknown (the mismatch diagnosis writes it).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub extra_motor_ut_per_a: Vec<[f64; 3]>,
 }
 
 impl Default for WiringParams {
@@ -141,6 +146,7 @@ impl Default for WiringParams {
                 sides: 36,
                 scale: 1.0,
             }],
+            extra_motor_ut_per_a: Vec::new(),
         }
     }
 }
@@ -274,6 +280,16 @@ impl WiringParams {
                 ));
             }
         }
+        if !self.extra_motor_ut_per_a.is_empty() && self.extra_motor_ut_per_a.len() != motors {
+            return Err(c.fail(
+                "wiring.extra_motor_ut_per_a",
+                format!("{} entries", self.extra_motor_ut_per_a.len()),
+                &format!("one [x, y, z] per motor ({motors}) or none"),
+            ));
+        }
+        for (k, g) in self.extra_motor_ut_per_a.iter().enumerate() {
+            c.finite3(&format!("wiring.extra_motor_ut_per_a[{k}]"), *g)?;
+        }
         for (k, l) in self.loops.iter().enumerate() {
             let key = format!("wiring.loop[{k}]");
             carrier_ok(&format!("{key}.carries"), l.carries)?;
@@ -323,6 +339,9 @@ impl WiringParams {
                     }
                 }
             }
+        }
+        for (m, extra) in g.motor_ut_per_a.iter_mut().zip(&self.extra_motor_ut_per_a) {
+            *m += Vec3::from(*extra);
         }
         g
     }
@@ -380,6 +399,7 @@ mod tests {
                 sides: 2000,
                 scale: 1.0,
             }],
+            extra_motor_ut_per_a: Vec::new(),
         };
         let g = w.gains(1, Vec3::zeros()).total_ut_per_a;
         let mu0 = 4.0 * std::f64::consts::PI * MU0_OVER_4PI_UT_M_PER_A;

@@ -1,0 +1,254 @@
+//! Electrical replay: a recording's own motor commands through the stand's motors, supply,
+//! board heating, hysteresis and logging delay, without the rigid body.
+//!
+//! The mismatch diagnosis needs the simulator's physics for one command history many times
+//! over (once per candidate parameter value), so this steps only the parts that shape the
+//! field at the sensor, between the recording's own sample times. Each row holds the state
+//! that [`simulate`](crate::simulate) would sample at that time: a row's commands act from
+//! that row on (zero-order hold, as the replay program does), the motor lag is advanced
+//! exactly, and substeps keep the coupling through the supply voltage accurate. On a
+//! restrained stand the body barely turns, so leaving it out changes the field by far less
+//! than the sensor noise.
+use crate::Scenario;
+use crate::battery::SupplyState;
+use crate::hysteresis::HysteresisState;
+use crate::motor::MotorState;
+use crate::thermal::ThermalState;
+use magstand_core::Vec3;
+
+/// Longest substep, s: short against the supply's and the board's time constants.
+const MAX_SUBSTEP_S: f64 = 0.01;
+
+/// The electrical state at every row of a replayed recording.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Trace {
+    /// Row times, s (the recording's).
+    pub t_s: Vec<f64>,
+    /// Per motor, per row: rotor speed over the full-command speed at the supply's
+    /// no-load voltage at the start (so about 0..1).
+    pub speed: Vec<Vec<f64>>,
+    /// Per motor, per row: 1 while the ESC drives the motor (command above the dead zone),
+    /// else 0.
+    pub driven: Vec<Vec<f64>>,
+    /// Per motor, per row: current, A.
+    pub current_a: Vec<Vec<f64>>,
+    /// Supply current including the avionics, A.
+    pub total_a: Vec<f64>,
+    /// Supply voltage, V.
+    pub voltage_v: Vec<f64>,
+    /// Board temperature, °C.
+    pub temp_c: Vec<f64>,
+    /// Output of the hysteresis play operator on the supply current, A.
+    pub play_a: Vec<f64>,
+    /// Field that the switched-on extras add at the sensor (thermal offset, hysteresis,
+    /// extra per-motor wiring gains), µT. The main wiring field is not included: its gains are
+    /// what a diagnosis calibrates.
+    pub extra_ut: Vec<Vec3>,
+}
+
+/// Replays `thr` (one column per motor, or one column for all motors) at times `t_s` through
+/// the electrical parts of `scenario`. With `bat_v`, the motors see the recorded supply voltage
+/// instead of the supply model's.
+///
+/// The caller passes a checked scenario (or one changed within checked ranges), strictly
+/// increasing times, and columns as long as `t_s`; the recording reader guarantees both.
+pub fn replay(scenario: &Scenario, t_s: &[f64], thr: &[Vec<f64>], bat_v: Option<&[f64]>) -> Trace {
+    let p = scenario;
+    let n_motors = p.motors.count;
+    let rows = t_s.len();
+    let command = |m: usize, r: usize| thr[if thr.len() == 1 { 0 } else { m }][r];
+    let mut supply = SupplyState::default();
+    let avionics = p.supply.avionics_current_a();
+    let no_load_v = supply.voltage_v(&p.supply, 0.0);
+    let full_speed = p.motors.steady_speed(0, 1.0, no_load_v).max(1e-9);
+    let mut motors = vec![MotorState::default(); n_motors];
+    let mut thermal = ThermalState::new(&p.thermal);
+    let mut hysteresis = HysteresisState::default();
+    let gains: Vec<Vec3> = p
+        .wiring
+        .extra_motor_ut_per_a
+        .iter()
+        .map(|g| Vec3::from(*g))
+        .collect();
+
+    let mut tr = Trace {
+        t_s: t_s.to_vec(),
+        speed: vec![Vec::with_capacity(rows); n_motors],
+        driven: vec![Vec::with_capacity(rows); n_motors],
+        current_a: vec![Vec::with_capacity(rows); n_motors],
+        total_a: Vec::with_capacity(rows),
+        voltage_v: Vec::with_capacity(rows),
+        temp_c: Vec::with_capacity(rows),
+        play_a: Vec::with_capacity(rows),
+        extra_ut: Vec::with_capacity(rows),
+    };
+    let mut total_a = avionics;
+    for r in 0..rows {
+        if r > 0 {
+            let dt = t_s[r] - t_s[r - 1];
+            let subs = (dt / MAX_SUBSTEP_S).ceil().max(1.0);
+            let h = dt / subs;
+            for _ in 0..subs as usize {
+                let voltage = match bat_v {
+                    Some(v) => v[r - 1],
+                    None => supply.voltage_v(&p.supply, total_a),
+                };
+                total_a = avionics;
+                for (m, st) in motors.iter_mut().enumerate() {
+                    st.step(&p.motors, m, command(m, r - 1), voltage, h);
+                    total_a += st.current_a;
+                }
+                supply.step(total_a, h);
+                thermal.step(&p.thermal, voltage * total_a, h);
+            }
+        }
+        let voltage = match bat_v {
+            Some(v) => v[r],
+            None => supply.voltage_v(&p.supply, total_a),
+        };
+        let hyst_ut = hysteresis.step(&p.hysteresis, total_a);
+        let mut extra = hyst_ut + p.thermal.offset_ut(thermal.temp_c);
+        for (m, st) in motors.iter().enumerate() {
+            tr.speed[m].push(st.speed_rad_s / full_speed);
+            tr.driven[m].push(if p.motors.duty(command(m, r)) > 0.0 {
+                1.0
+            } else {
+                0.0
+            });
+            tr.current_a[m].push(st.current_a);
+            if let Some(g) = gains.get(m) {
+                extra += g * st.current_a;
+            }
+        }
+        tr.total_a.push(total_a);
+        tr.voltage_v.push(voltage);
+        tr.temp_c.push(thermal.temp_c);
+        tr.play_a.push(hysteresis.output_a);
+        tr.extra_ut.push(extra);
+    }
+    if p.logging.mag_delay_s > 0.0 {
+        tr.delay(p.logging.mag_delay_s);
+    }
+    tr
+}
+
+impl Trace {
+    /// Number of rows.
+    pub fn len(&self) -> usize {
+        self.t_s.len()
+    }
+
+    /// Whether the trace has no rows.
+    pub fn is_empty(&self) -> bool {
+        self.t_s.is_empty()
+    }
+
+    /// Shifts every column so that row `r` holds the state at `t_s[r] - delay_s` (linear
+    /// interpolation, the first row's state before the start): what a magnetometer stream
+    /// logged `delay_s` late sees.
+    pub fn delay(&mut self, delay_s: f64) {
+        let t = self.t_s.clone();
+        let at: Vec<(usize, f64)> = t
+            .iter()
+            .map(|&ti| {
+                let target = ti - delay_s;
+                let k = t.partition_point(|&x| x <= target);
+                if k == 0 {
+                    (0, 0.0)
+                } else if k >= t.len() {
+                    (t.len() - 1, 0.0)
+                } else {
+                    (k - 1, (target - t[k - 1]) / (t[k] - t[k - 1]))
+                }
+            })
+            .collect();
+        let shift = |col: &mut Vec<f64>| {
+            let old = col.clone();
+            for (v, &(k, f)) in col.iter_mut().zip(&at) {
+                *v = if f == 0.0 {
+                    old[k]
+                } else {
+                    old[k] + f * (old[k + 1] - old[k])
+                };
+            }
+        };
+        for m in 0..self.speed.len() {
+            shift(&mut self.speed[m]);
+            shift(&mut self.driven[m]);
+            shift(&mut self.current_a[m]);
+        }
+        shift(&mut self.total_a);
+        shift(&mut self.voltage_v);
+        shift(&mut self.temp_c);
+        shift(&mut self.play_a);
+        let old = self.extra_ut.clone();
+        for (v, &(k, f)) in self.extra_ut.iter_mut().zip(&at) {
+            *v = if f == 0.0 {
+                old[k]
+            } else {
+                old[k] + (old[k + 1] - old[k]) * f
+            };
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::simulate;
+
+    const STAIR: &str = r#"
+        name = "replay check"
+        physics_hz = 1000.0
+        [program]
+        kind = "stair"
+        off_s = 1.0
+        steps = 4
+        dwell_s = 1.0
+        [magnetometer]
+        odr_hz = 50.0
+        [logging]
+        record_power = true
+    "#;
+
+    #[test]
+    fn replay_matches_the_full_simulation_of_the_same_commands() {
+        let s = Scenario::from_toml_str(STAIR, "t")
+            .unwrap()
+            .check("t", None)
+            .unwrap();
+        let rec = simulate(&s, 3);
+        let tr = replay(s.params(), &rec.t_s, &rec.thr, None);
+        let (a, v) = (rec.bat_a.clone().unwrap(), rec.bat_v.clone().unwrap());
+        for r in 0..rec.len() {
+            assert!(
+                (tr.total_a[r] - a[r]).abs() < 0.02 * a[r].max(1.0),
+                "row {r}: replay {} A, simulation {} A",
+                tr.total_a[r],
+                a[r]
+            );
+            assert!((tr.voltage_v[r] - v[r]).abs() < 0.01, "row {r}");
+        }
+    }
+
+    #[test]
+    fn delay_shifts_the_trace_by_whole_and_partial_rows() {
+        let s = Scenario::from_toml_str(STAIR, "t")
+            .unwrap()
+            .check("t", None)
+            .unwrap();
+        let rec = simulate(&s, 3);
+        let tr = replay(s.params(), &rec.t_s, &rec.thr, None);
+        let mut late = tr.clone();
+        late.delay(0.03); // one and a half rows at 50 Hz
+        for r in 2..tr.len() {
+            let expected = 0.5 * (tr.total_a[r - 1] + tr.total_a[r - 2]);
+            assert!(
+                (late.total_a[r] - expected).abs() < 1e-9,
+                "row {r}: {} vs {expected}",
+                late.total_a[r]
+            );
+        }
+        assert_eq!(late.total_a[0], tr.total_a[0]);
+    }
+}
