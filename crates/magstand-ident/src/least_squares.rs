@@ -87,6 +87,44 @@ impl NormalEquations {
 
     /// Solves for the coefficients: one column per output.
     pub fn solve(&self) -> Result<DMatrix<f64>, SolveError> {
+        let (chol, scale, rcond) = self.factor()?;
+        let p = scale.len();
+        let mut b = self.xty.clone();
+        for i in 0..p {
+            for k in 0..b.ncols() {
+                b[(i, k)] *= scale[i];
+            }
+        }
+        let mut theta = chol.solve(&b);
+        for i in 0..p {
+            for k in 0..theta.ncols() {
+                theta[(i, k)] *= scale[i];
+            }
+        }
+        if theta.iter().all(|v| v.is_finite()) {
+            Ok(theta)
+        } else {
+            Err(SolveError::Singular { column: 0, rcond })
+        }
+    }
+
+    /// The diagonal of `(X^T W X)^-1`: with weights equal to inverse noise variances, the
+    /// variance of each coefficient. Found by Cholesky solves against unit vectors.
+    pub fn coefficient_variances(&self) -> Result<DVector<f64>, SolveError> {
+        let (chol, scale, _) = self.factor()?;
+        let p = scale.len();
+        Ok(DVector::from_fn(p, |i, _| {
+            let mut e = DVector::zeros(p);
+            e[i] = 1.0;
+            chol.solve(&e)[i] * scale[i] * scale[i]
+        }))
+    }
+
+    /// Equilibrated Cholesky factor of the normal matrix, the scale used and the reciprocal
+    /// condition estimate; refuses empty and (nearly) singular systems.
+    fn factor(
+        &self,
+    ) -> Result<(nalgebra::Cholesky<f64, nalgebra::Dyn>, DVector<f64>, f64), SolveError> {
         let p = self.xtx.nrows();
         if self.rows == 0 || self.weight_sum <= 0.0 {
             return Err(SolveError::NoData);
@@ -127,23 +165,7 @@ impl NormalEquations {
             let column = diag.iter().position(|&d| d == lo).unwrap_or(0);
             return Err(SolveError::Singular { column, rcond });
         }
-        let mut b = self.xty.clone();
-        for i in 0..p {
-            for k in 0..b.ncols() {
-                b[(i, k)] *= scale[i];
-            }
-        }
-        let mut theta = chol.solve(&b);
-        for i in 0..p {
-            for k in 0..theta.ncols() {
-                theta[(i, k)] *= scale[i];
-            }
-        }
-        if theta.iter().all(|v| v.is_finite()) {
-            Ok(theta)
-        } else {
-            Err(SolveError::Singular { column: 0, rcond })
-        }
+        Ok((chol, scale, rcond))
     }
 }
 
@@ -180,6 +202,33 @@ mod tests {
         assert!(
             (th[(0, 0)] - 3.0).abs() < 1e-12 && (th[(1, 0)] + 2.0).abs() < 1e-12,
             "{th}"
+        );
+    }
+
+    #[test]
+    fn coefficient_variances_match_the_closed_form_of_a_line() {
+        // y = a + b x with unit weights: var(b) = 1 / sum (x - mean)^2, var(a) = sum x^2 / (n Sxx).
+        let mut ne = NormalEquations::new(2, 1);
+        let xs: Vec<f64> = (0..10).map(|k| k as f64).collect();
+        for &x in &xs {
+            ne.add(&[1.0, x], &[0.0], 1.0);
+        }
+        let n = xs.len() as f64;
+        let mean = xs.iter().sum::<f64>() / n;
+        let sxx: f64 = xs.iter().map(|x| (x - mean).powi(2)).sum();
+        let sx2: f64 = xs.iter().map(|x| x * x).sum();
+        let v = ne.coefficient_variances().unwrap();
+        assert!(
+            (v[1] - 1.0 / sxx).abs() < 1e-12,
+            "{} vs {}",
+            v[1],
+            1.0 / sxx
+        );
+        assert!(
+            (v[0] - sx2 / (n * sxx)).abs() < 1e-12,
+            "{} vs {}",
+            v[0],
+            sx2 / (n * sxx)
         );
     }
 

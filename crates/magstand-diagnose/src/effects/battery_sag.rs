@@ -1,0 +1,128 @@
+use magstand_sim::Scenario;
+use magstand_sim::battery::SupplyParams;
+use magstand_sim::replay::replay;
+
+use super::{Context, Effect, Param};
+use crate::optimize::{Search, minimize};
+
+/// The supply is a battery whose voltage falls with the charge drawn and under load.
+pub struct BatterySag;
+
+fn searches() -> Vec<Search> {
+    vec![
+        Search {
+            name: "internal_resistance_ohm",
+            unit: "ohm",
+            lo: 0.003,
+            hi: 0.3,
+            log: true,
+            points: 9,
+        },
+        Search {
+            name: "capacity_ah",
+            unit: "Ah",
+            lo: 0.3,
+            hi: 30.0,
+            log: true,
+            points: 9,
+        },
+    ]
+}
+
+/// Cells of the battery standing in for the nominal supply: the nominal battery's, or the
+/// number whose nominal 3.9 V per cell is nearest the bench voltage.
+fn cells(nominal: &Scenario) -> u32 {
+    match nominal.supply {
+        SupplyParams::Battery { cells, .. } => cells,
+        SupplyParams::Bench { voltage_v, .. } => ((voltage_v / 3.9).round() as u32).clamp(1, 14),
+    }
+}
+
+fn set_battery(ctx: &Context, s: &mut Scenario, theta: &[f64]) {
+    s.supply = SupplyParams::Battery {
+        cells: cells(ctx.nominal),
+        capacity_ah: theta[1],
+        internal_resistance_ohm: theta[0],
+        initial_charge: 1.0,
+        avionics_current_a: ctx.nominal.supply.avionics_current_a(),
+    };
+}
+
+impl BatterySag {
+    /// With `bat_v` recorded, the battery that reproduces it best through the replayed
+    /// currents (chi-square with a 10 mV voltage error).
+    fn fit_to_recorded_voltage(
+        &self,
+        ctx: &Context,
+        s: &Scenario,
+    ) -> Option<(Vec<f64>, Vec<Option<f64>>)> {
+        let v = ctx.rec.bat_v.as_deref()?;
+        let o = minimize(&searches(), |theta| {
+            let mut b = s.clone();
+            set_battery(ctx, &mut b, theta);
+            let tr = replay(&b, &ctx.rec.t_s, &ctx.rec.thr, None);
+            Some(
+                tr.voltage_v
+                    .iter()
+                    .zip(v)
+                    .map(|(a, b)| ((a - b) / 0.01).powi(2))
+                    .sum(),
+            )
+        })?;
+        Some((o.theta, o.sd))
+    }
+}
+
+impl Effect for BatterySag {
+    fn name(&self) -> &'static str {
+        "battery_sag"
+    }
+    fn explanation(&self) -> &'static str {
+        "The battery voltage falls with the charge drawn and sags under load, so at a fixed \
+         command the motor currents, and the field they make, drift down over a run."
+    }
+    fn search(&self, ctx: &Context) -> Vec<Search> {
+        if ctx.rec.bat_v.is_some() {
+            Vec::new()
+        } else {
+            searches()
+        }
+    }
+    fn apply(&self, ctx: &Context, s: &mut Scenario, theta: &[f64]) {
+        if ctx.rec.bat_v.is_none() {
+            set_battery(ctx, s, theta);
+        }
+    }
+    fn uses_recorded_voltage(&self, ctx: &Context) -> bool {
+        ctx.rec.bat_v.is_some()
+    }
+    fn switch_on(&self, ctx: &Context, s: &mut Scenario, theta: &[f64], _coef: &[[f64; 3]]) {
+        if ctx.rec.bat_v.is_none() {
+            set_battery(ctx, s, theta);
+        } else if let Some((theta, _)) = self.fit_to_recorded_voltage(ctx, &s.clone()) {
+            set_battery(ctx, s, &theta);
+        }
+    }
+    fn params(
+        &self,
+        ctx: &Context,
+        theta: &[f64],
+        sd: &[Option<f64>],
+        _c: &[[f64; 3]],
+        _csd: &[[f64; 3]],
+    ) -> Vec<Param> {
+        let (theta, sd) = if ctx.rec.bat_v.is_some() {
+            match self.fit_to_recorded_voltage(ctx, ctx.nominal) {
+                Some(f) => f,
+                None => return Vec::new(),
+            }
+        } else {
+            (theta.to_vec(), sd.to_vec())
+        };
+        vec![
+            Param::new("internal_resistance_ohm", theta[0], sd[0], "ohm"),
+            Param::new("capacity_ah", theta[1], sd[1], "Ah"),
+            Param::new("cells", cells(ctx.nominal) as f64, None, "cells in series"),
+        ]
+    }
+}

@@ -1,0 +1,44 @@
+use magstand_sim::Scenario;
+
+use super::{Context, Effect, Param};
+use crate::optimize::Search;
+
+/// Motor current follows a command step through a first-order lag (spin-up) other than the
+/// nominal one.
+pub struct CurrentLag;
+
+impl Effect for CurrentLag {
+    fn name(&self) -> &'static str {
+        "current_lag"
+    }
+    fn explanation(&self) -> &'static str {
+        "The rotors take time to spin up and down, so motor current, and the field it makes, \
+         follows each command step through a first-order lag."
+    }
+    fn search(&self, _ctx: &Context) -> Vec<Search> {
+        vec![Search {
+            name: "spinup_tau_s",
+            unit: "s",
+            lo: 0.005,
+            hi: 3.0,
+            log: true,
+            points: 15,
+        }]
+    }
+    fn apply(&self, _ctx: &Context, s: &mut Scenario, theta: &[f64]) {
+        s.motors.spinup_tau_s = theta[0];
+    }
+    fn switch_on(&self, ctx: &Context, s: &mut Scenario, theta: &[f64], _coef: &[[f64; 3]]) {
+        self.apply(ctx, s, theta);
+    }
+    fn params(
+        &self,
+        _ctx: &Context,
+        theta: &[f64],
+        sd: &[Option<f64>],
+        _c: &[[f64; 3]],
+        _csd: &[[f64; 3]],
+    ) -> Vec<Param> {
+        vec![Param::new("spinup_tau_s", theta[0], sd[0], "s")]
+    }
+}

@@ -1,0 +1,59 @@
+use magstand_sim::Scenario;
+use magstand_sim::replay::Trace;
+
+use super::{Context, Effect, Param};
+use crate::optimize::Search;
+
+/// Magnetized steel near the sensor: the field differs going up and coming down.
+pub struct Hysteresis;
+
+impl Effect for Hysteresis {
+    fn name(&self) -> &'static str {
+        "hysteresis"
+    }
+    fn explanation(&self) -> &'static str {
+        "Steel near the sensor is magnetized by the current's field and keeps part of it, so \
+         the disturbance going up in throttle differs from the one coming down."
+    }
+    fn search(&self, ctx: &Context) -> Vec<Search> {
+        let max_a = ctx
+            .nominal_trace
+            .total_a
+            .iter()
+            .cloned()
+            .fold(1.0, f64::max);
+        vec![Search {
+            name: "play_a",
+            unit: "A",
+            lo: 0.05 * max_a,
+            hi: 0.5 * max_a,
+            log: true,
+            points: 13,
+        }]
+    }
+    fn apply(&self, _ctx: &Context, s: &mut Scenario, theta: &[f64]) {
+        // The play operator's output is the regressor; the field comes from its coefficient.
+        s.hysteresis.enabled = false;
+        s.hysteresis.play_a = theta[0];
+    }
+    fn regressors(&self, _ctx: &Context, trace: &Trace, _theta: &[f64]) -> Vec<(String, Vec<f64>)> {
+        vec![("play_a".into(), trace.play_a.clone())]
+    }
+    fn switch_on(&self, _ctx: &Context, s: &mut Scenario, theta: &[f64], coef: &[[f64; 3]]) {
+        s.hysteresis.enabled = true;
+        s.hysteresis.play_a = theta[0];
+        s.hysteresis.gain_ut_per_a = coef[0];
+    }
+    fn params(
+        &self,
+        _ctx: &Context,
+        theta: &[f64],
+        sd: &[Option<f64>],
+        coef: &[[f64; 3]],
+        coef_sd: &[[f64; 3]],
+    ) -> Vec<Param> {
+        let mut p = vec![Param::new("play_a", theta[0], sd[0], "A")];
+        p.extend(Param::axes("gain_ut_per_a", coef[0], coef_sd[0], "µT/A"));
+        p
+    }
+}

@@ -1,0 +1,190 @@
+//! The catalog of candidate physics. Each effect is one file with one type implementing
+//! [`Effect`]: its name and physics, the nonlinear parameters it searches, how it changes the
+//! replayed physics, the regressors it adds, and how it switches the matching simulator module
+//! on with the fitted values.
+use magstand_core::Recording;
+use magstand_sim::Scenario;
+use magstand_sim::replay::Trace;
+use serde::{Deserialize, Serialize};
+
+use crate::optimize::Search;
+use crate::split::Split;
+
+mod battery_sag;
+mod current_lag;
+mod dead_zone;
+mod hysteresis;
+mod motor_asymmetry;
+mod thermal_drift;
+mod time_offset;
+
+pub use battery_sag::BatterySag;
+pub use current_lag::CurrentLag;
+pub use dead_zone::DeadZone;
+pub use hysteresis::Hysteresis;
+pub use motor_asymmetry::MotorAsymmetry;
+pub use thermal_drift::ThermalDrift;
+pub use time_offset::TimeOffset;
+
+/// What an effect sees of the problem.
+pub struct Context<'a> {
+    /// The recording diagnosed.
+    pub rec: &'a Recording,
+    /// The nominal physics (the scenario as given, or the default nominal stand).
+    pub nominal: &'a Scenario,
+    /// Identification and held-out rows.
+    pub split: &'a Split,
+    /// The nominal replay of the recording's commands.
+    pub nominal_trace: &'a Trace,
+    /// The recording's name, for messages.
+    pub rec_origin: String,
+}
+
+/// A fitted parameter with its unit and standard uncertainty.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Param {
+    /// Name, with its unit suffix.
+    pub name: String,
+    /// Value.
+    pub value: f64,
+    /// Standard uncertainty (None where the fit gives no curvature, e.g. at a range limit).
+    pub sd: Option<f64>,
+    /// Unit.
+    pub unit: String,
+}
+
+impl Param {
+    /// A parameter.
+    pub fn new(name: impl Into<String>, value: f64, sd: Option<f64>, unit: &str) -> Param {
+        Param {
+            name: name.into(),
+            value,
+            sd: sd.filter(|s| s.is_finite()),
+            unit: unit.into(),
+        }
+    }
+
+    /// Three parameters `name_x`, `name_y`, `name_z` from per-axis values.
+    pub fn axes(name: &str, value: [f64; 3], sd: [f64; 3], unit: &str) -> Vec<Param> {
+        ["x", "y", "z"]
+            .iter()
+            .enumerate()
+            .map(|(a, ax)| Param::new(format!("{name}_{ax}"), value[a], Some(sd[a]), unit))
+            .collect()
+    }
+}
+
+/// A candidate piece of physics the nominal simulation may have left out.
+pub trait Effect: Sync + Send {
+    /// Catalog name (`battery_sag`, ...).
+    fn name(&self) -> &'static str;
+
+    /// One sentence of physics.
+    fn explanation(&self) -> &'static str;
+
+    /// Whether this recording can show the effect at all.
+    fn applies(&self, _ctx: &Context) -> bool {
+        true
+    }
+
+    /// The nonlinear parameters searched (none when the effect is linear in its regressors).
+    fn search(&self, ctx: &Context) -> Vec<Search>;
+
+    /// Changes the replayed physics for nonlinear parameters `theta`.
+    fn apply(&self, _ctx: &Context, _scenario: &mut Scenario, _theta: &[f64]) {}
+
+    /// Whether the motors should see the recorded supply voltage instead of the supply model's.
+    fn uses_recorded_voltage(&self, _ctx: &Context) -> bool {
+        false
+    }
+
+    /// Regressor columns the effect adds (each gets one coefficient per axis), with names.
+    fn regressors(
+        &self,
+        _ctx: &Context,
+        _trace: &Trace,
+        _theta: &[f64],
+    ) -> Vec<(String, Vec<f64>)> {
+        Vec::new()
+    }
+
+    /// Switches the simulator's module on with the fitted nonlinear parameters and regressor
+    /// coefficients (per column, per axis).
+    fn switch_on(&self, ctx: &Context, scenario: &mut Scenario, theta: &[f64], coef: &[[f64; 3]]);
+
+    /// The fitted parameters for people: nonlinear ones with their uncertainty, and the
+    /// coefficients in physical units.
+    fn params(
+        &self,
+        ctx: &Context,
+        theta: &[f64],
+        theta_sd: &[Option<f64>],
+        coef: &[[f64; 3]],
+        coef_sd: &[[f64; 3]],
+    ) -> Vec<Param>;
+}
+
+/// Every effect of the catalog, in a fixed order.
+pub fn catalog() -> Vec<Box<dyn Effect>> {
+    vec![
+        Box::new(BatterySag),
+        Box::new(ThermalDrift),
+        Box::new(CurrentLag),
+        Box::new(TimeOffset),
+        Box::new(Hysteresis),
+        Box::new(MotorAsymmetry),
+        Box::new(DeadZone),
+    ]
+}
+
+/// Names of the catalog's effects.
+pub fn names() -> Vec<&'static str> {
+    catalog().iter().map(|e| e.name()).collect()
+}
+
+/// First-order lag of `x` sampled at `t_s` with time constant `tau_s`, starting from zero
+/// (exact for a signal held between samples).
+pub(crate) fn first_order_lag(t_s: &[f64], x: &[f64], tau_s: f64) -> Vec<f64> {
+    let mut y = Vec::with_capacity(x.len());
+    let mut state = 0.0;
+    for r in 0..x.len() {
+        if r > 0 {
+            let dt = t_s[r] - t_s[r - 1];
+            state += (x[r - 1] - state) * (1.0 - (-dt / tau_s).exp());
+        }
+        y.push(state);
+    }
+    y
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn catalog_names_are_the_documented_ones() {
+        assert_eq!(
+            names(),
+            [
+                "battery_sag",
+                "thermal_drift",
+                "current_lag",
+                "time_offset",
+                "hysteresis",
+                "motor_asymmetry",
+                "dead_zone"
+            ]
+        );
+    }
+
+    #[test]
+    fn first_order_lag_reaches_63_percent_after_one_time_constant() {
+        let t: Vec<f64> = (0..=1000).map(|k| k as f64 * 0.01).collect();
+        let y = first_order_lag(&t, &vec![1.0; t.len()], 2.0);
+        assert!(
+            (y[200] - (1.0 - (-1.0f64).exp())).abs() < 1e-12,
+            "{}",
+            y[200]
+        );
+    }
+}

@@ -1,0 +1,126 @@
+use magstand_sim::Scenario;
+use magstand_sim::replay::Trace;
+
+use super::{Context, Effect, Param, first_order_lag};
+use crate::optimize::{Search, minimize};
+
+/// The board heats with the power drawn and the sensor offset moves with temperature.
+pub struct ThermalDrift;
+
+fn tau_search() -> Search {
+    Search {
+        name: "tau_s",
+        unit: "s",
+        lo: 10.0,
+        hi: 3000.0,
+        log: true,
+        points: 13,
+    }
+}
+
+/// Electrical power drawn at every row, W.
+fn power_w(trace: &Trace) -> Vec<f64> {
+    trace
+        .voltage_v
+        .iter()
+        .zip(&trace.total_a)
+        .map(|(v, i)| v * i)
+        .collect()
+}
+
+impl ThermalDrift {
+    /// With `temp_c` recorded: the board's time constant and rise per watt that reproduce it
+    /// from the replayed power (least squares in the rise, search in the time constant).
+    fn fit_heating(&self, ctx: &Context, trace: &Trace) -> Option<(f64, Option<f64>, f64)> {
+        let temp = ctx.rec.temp_c.as_deref()?;
+        let p = power_w(trace);
+        let t0 = temp[0];
+        let rise_at = |tau: f64| {
+            let x = first_order_lag(&trace.t_s, &p, tau);
+            let (sxx, sxy) = x
+                .iter()
+                .zip(temp)
+                .fold((0.0, 0.0), |(a, b), (x, t)| (a + x * x, b + x * (t - t0)));
+            let rise = if sxx > 0.0 { sxy / sxx } else { 0.0 };
+            let sse: f64 = x
+                .iter()
+                .zip(temp)
+                .map(|(x, t)| (t - t0 - rise * x).powi(2))
+                .sum();
+            (rise, sse)
+        };
+        // Chi-square with a 0.1 °C temperature error.
+        let o = minimize(&[tau_search()], |th| Some(rise_at(th[0]).1 / 0.01))?;
+        Some((o.theta[0], o.sd[0], rise_at(o.theta[0]).0))
+    }
+}
+
+impl Effect for ThermalDrift {
+    fn name(&self) -> &'static str {
+        "thermal_drift"
+    }
+    fn explanation(&self) -> &'static str {
+        "The board warms with the power drawn and cools over minutes, and the magnetometer's \
+         offset moves with its temperature."
+    }
+    fn search(&self, ctx: &Context) -> Vec<Search> {
+        if ctx.rec.temp_c.is_some() {
+            Vec::new()
+        } else {
+            vec![tau_search()]
+        }
+    }
+    fn regressors(&self, ctx: &Context, trace: &Trace, theta: &[f64]) -> Vec<(String, Vec<f64>)> {
+        match ctx.rec.temp_c.as_deref() {
+            Some(t) => vec![("temp_rise_c".into(), t.iter().map(|v| v - t[0]).collect())],
+            // Temperature rise per (°C/W): the lagged power, W.
+            None => vec![(
+                "lagged_power_w".into(),
+                first_order_lag(&trace.t_s, &power_w(trace), theta[0]),
+            )],
+        }
+    }
+    fn switch_on(&self, ctx: &Context, s: &mut Scenario, theta: &[f64], coef: &[[f64; 3]]) {
+        s.thermal.enabled = true;
+        match self.fit_heating(ctx, ctx.nominal_trace) {
+            Some((tau, _, rise)) if rise > 0.0 => {
+                s.thermal.tau_s = tau;
+                s.thermal.rise_c_per_w = rise.min(10.0);
+                s.thermal.ambient_c = ctx
+                    .rec
+                    .temp_c
+                    .as_deref()
+                    .map_or(s.thermal.ambient_c, |t| t[0]);
+                s.thermal.offset_ut_per_c = coef[0];
+            }
+            _ => {
+                // Only the product of rise and offset is seen: keep the nominal rise.
+                s.thermal.tau_s = theta.first().copied().unwrap_or(s.thermal.tau_s);
+                let rise = s.thermal.rise_c_per_w.max(1e-6);
+                s.thermal.offset_ut_per_c = coef[0].map(|c| c / rise);
+            }
+        }
+    }
+    fn params(
+        &self,
+        ctx: &Context,
+        theta: &[f64],
+        sd: &[Option<f64>],
+        coef: &[[f64; 3]],
+        coef_sd: &[[f64; 3]],
+    ) -> Vec<Param> {
+        match self.fit_heating(ctx, ctx.nominal_trace) {
+            Some((tau, tau_sd, rise)) => {
+                let mut p = Param::axes("offset_ut_per_c", coef[0], coef_sd[0], "µT/°C");
+                p.push(Param::new("tau_s", tau, tau_sd, "s"));
+                p.push(Param::new("rise_c_per_w", rise, None, "°C/W"));
+                p
+            }
+            None => {
+                let mut p = vec![Param::new("tau_s", theta[0], sd[0], "s")];
+                p.extend(Param::axes("offset_ut_per_w", coef[0], coef_sd[0], "µT/W"));
+                p
+            }
+        }
+    }
+}

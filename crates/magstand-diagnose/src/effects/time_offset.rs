@@ -1,0 +1,45 @@
+use magstand_sim::Scenario;
+
+use super::{Context, Effect, Param};
+use crate::optimize::Search;
+
+/// The magnetometer stream is logged late against the command stream.
+pub struct TimeOffset;
+
+impl Effect for TimeOffset {
+    fn name(&self) -> &'static str {
+        "time_offset"
+    }
+    fn explanation(&self) -> &'static str {
+        "The magnetometer samples are time-stamped late against the motor commands (logging \
+         latency), so every change in the field appears a fixed time after its cause."
+    }
+    fn search(&self, ctx: &Context) -> Vec<Search> {
+        // Up to half a second, in steps finer than one sample.
+        let dt = ctx.rec.mean_interval_s();
+        Vec::from([Search {
+            name: "mag_delay_s",
+            unit: "s",
+            lo: 0.0,
+            hi: 0.5,
+            log: false,
+            points: ((0.5 / dt).ceil() as usize + 1).clamp(11, 51),
+        }])
+    }
+    fn apply(&self, _ctx: &Context, s: &mut Scenario, theta: &[f64]) {
+        s.logging.mag_delay_s = theta[0];
+    }
+    fn switch_on(&self, ctx: &Context, s: &mut Scenario, theta: &[f64], _coef: &[[f64; 3]]) {
+        self.apply(ctx, s, theta);
+    }
+    fn params(
+        &self,
+        _ctx: &Context,
+        theta: &[f64],
+        sd: &[Option<f64>],
+        _c: &[[f64; 3]],
+        _csd: &[[f64; 3]],
+    ) -> Vec<Param> {
+        vec![Param::new("mag_delay_s", theta[0], sd[0], "s")]
+    }
+}

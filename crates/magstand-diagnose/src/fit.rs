@@ -1,0 +1,203 @@
+//! The weighted calibration shared by the baseline and every candidate: one design of
+//! regressor columns, fitted per axis on the identification rows only, with inverse-variance
+//! weights from the throttle-dependent noise model.
+use magstand_core::Vec3;
+use magstand_ident::least_squares::{NormalEquations, SolveError};
+use magstand_sim::replay::Trace;
+
+/// Regressor columns (one value per row each) with their names.
+#[derive(Debug, Clone, Default)]
+pub(crate) struct Design {
+    pub columns: Vec<Vec<f64>>,
+    pub names: Vec<String>,
+}
+
+impl Design {
+    /// The nominal physics: field linear in the motor currents, each motor's current a smooth
+    /// function of its rotor speed (idle current while driven, then powers of speed; the cubic
+    /// term lets the calibration follow a current law other than the nominal one). Columns are
+    /// sums over motors, because the nominal stand treats all motors alike.
+    pub fn baseline(trace: &Trace) -> Design {
+        let n = trace.len();
+        let mut d = Design::default();
+        d.push("reference", vec![1.0; n]);
+        let sum = |f: &dyn Fn(usize, usize) -> f64| -> Vec<f64> {
+            (0..n)
+                .map(|r| (0..trace.speed.len()).map(|m| f(m, r)).sum())
+                .collect()
+        };
+        d.push("driven", sum(&|m, r| trace.driven[m][r]));
+        d.push("speed", sum(&|m, r| trace.speed[m][r]));
+        d.push("speed^2", sum(&|m, r| trace.speed[m][r].powi(2)));
+        d.push("speed^3", sum(&|m, r| trace.speed[m][r].powi(3)));
+        d
+    }
+
+    pub fn push(&mut self, name: impl Into<String>, column: Vec<f64>) {
+        self.names.push(name.into());
+        self.columns.push(column);
+    }
+
+    pub fn len(&self) -> usize {
+        self.columns.len()
+    }
+}
+
+/// Inverse noise variance of every row and axis.
+#[derive(Debug, Clone)]
+pub(crate) struct Weights(pub Vec<[f64; 3]>);
+
+/// A calibrated design.
+#[derive(Debug, Clone)]
+pub(crate) struct Fitted {
+    /// Coefficient of each column, per axis.
+    pub coef: Vec<[f64; 3]>,
+    /// Standard deviation of each coefficient, per axis (from the weights).
+    pub coef_sd: Vec<[f64; 3]>,
+    /// Prediction for every row, including any fixed part.
+    pub pred: Vec<Vec3>,
+    /// Weighted squared residual summed over identification rows and axes.
+    pub chi2_fit: f64,
+}
+
+impl Fitted {
+    /// Residual of every row.
+    pub fn residuals(&self, y: &[Vec3]) -> Vec<Vec3> {
+        y.iter().zip(&self.pred).map(|(y, p)| y - p).collect()
+    }
+}
+
+/// Fits `design` to `y - fixed` on the rows not held out, per axis, and predicts every row.
+pub(crate) fn fit(
+    design: &Design,
+    y: &[Vec3],
+    fixed: Option<&[Vec3]>,
+    weights: &Weights,
+    holdout: &[bool],
+) -> Result<Fitted, SolveError> {
+    let p = design.len();
+    let n = y.len();
+    let mut ne: [NormalEquations; 3] = std::array::from_fn(|_| NormalEquations::new(p, 1));
+    let mut x = vec![0.0; p];
+    let target = |r: usize| match fixed {
+        Some(f) => y[r] - f[r],
+        None => y[r],
+    };
+    for r in (0..n).filter(|&r| !holdout[r]) {
+        for (xj, col) in x.iter_mut().zip(&design.columns) {
+            *xj = col[r];
+        }
+        let t = target(r);
+        for a in 0..3 {
+            ne[a].add(&x, &[t[a]], weights.0[r][a]);
+        }
+    }
+    let mut coef = vec![[0.0; 3]; p];
+    let mut coef_sd = vec![[0.0; 3]; p];
+    for a in 0..3 {
+        let theta = ne[a].solve()?;
+        let var = ne[a].coefficient_variances()?;
+        for j in 0..p {
+            coef[j][a] = theta[(j, 0)];
+            coef_sd[j][a] = var[j].max(0.0).sqrt();
+        }
+    }
+    let mut pred = Vec::with_capacity(n);
+    let mut chi2_fit = 0.0;
+    for r in 0..n {
+        let mut v = fixed.map_or(Vec3::zeros(), |f| f[r]);
+        for (c, col) in coef.iter().zip(&design.columns) {
+            v += Vec3::from(*c) * col[r];
+        }
+        if !holdout[r] {
+            let e = y[r] - v;
+            chi2_fit += (0..3).map(|a| weights.0[r][a] * e[a] * e[a]).sum::<f64>();
+        }
+        pred.push(v);
+    }
+    Ok(Fitted {
+        coef,
+        coef_sd,
+        pred,
+        chi2_fit,
+    })
+}
+
+/// Noise variance growing with the load, per axis: `c0 + c1 q + c2 q^2`, q the motor current
+/// over its largest value (eq. 8: the variance grows with the control input).
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct VarianceModel {
+    coef: [[f64; 3]; 3],
+    floor: [f64; 3],
+}
+
+impl VarianceModel {
+    /// Fits the squared residuals of the identification rows.
+    pub fn fit(resid: &[Vec3], q: &[f64], holdout: &[bool]) -> VarianceModel {
+        let mut ne = NormalEquations::new(3, 3);
+        let mut mean = [0.0; 3];
+        let mut count = 0.0f64;
+        for r in (0..resid.len()).filter(|&r| !holdout[r]) {
+            let e2 = [resid[r].x.powi(2), resid[r].y.powi(2), resid[r].z.powi(2)];
+            ne.add(&[1.0, q[r], q[r] * q[r]], &e2, 1.0);
+            for a in 0..3 {
+                mean[a] += e2[a];
+            }
+            count += 1.0;
+        }
+        let mean = mean.map(|m| m / count.max(1.0));
+        // A variance model that reached zero would give one row all the weight.
+        let floor = mean.map(|m| (0.05 * m).max(1e-12));
+        let coef = match ne.solve() {
+            Ok(c) => std::array::from_fn(|k| std::array::from_fn(|a| c[(k, a)])),
+            Err(_) => [mean, [0.0; 3], [0.0; 3]],
+        };
+        VarianceModel { coef, floor }
+    }
+
+    /// Variance at load `q`, per axis.
+    pub fn at(&self, q: f64) -> [f64; 3] {
+        std::array::from_fn(|a| {
+            (self.coef[0][a] + self.coef[1][a] * q + self.coef[2][a] * q * q).max(self.floor[a])
+        })
+    }
+
+    /// Inverse variances of every row.
+    pub fn weights(&self, q: &[f64]) -> Weights {
+        Weights(q.iter().map(|&q| self.at(q).map(|v| 1.0 / v)).collect())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn recovers_exact_coefficients_and_the_variance_law() {
+        let n = 400;
+        let x: Vec<f64> = (0..n).map(|k| k as f64 / n as f64).collect();
+        let mut d = Design::default();
+        d.push("one", vec![1.0; n]);
+        d.push("x", x.clone());
+        let y: Vec<Vec3> = x
+            .iter()
+            .map(|&x| Vec3::new(1.0 + 2.0 * x, -3.0 * x, 0.5))
+            .collect();
+        let w = Weights(vec![[1.0; 3]; n]);
+        let hold: Vec<bool> = (0..n).map(|k| k % 3 == 2).collect();
+        let f = fit(&d, &y, None, &w, &hold).unwrap();
+        assert!((f.coef[1][0] - 2.0).abs() < 1e-10 && (f.coef[1][1] + 3.0).abs() < 1e-10);
+        assert!(f.chi2_fit < 1e-18, "{}", f.chi2_fit);
+        // Squared residuals exactly 0.1 + 0.4 q^2 on x, constant 0.2 elsewhere.
+        let res: Vec<Vec3> = x
+            .iter()
+            .map(|&q| Vec3::new((0.1 + 0.4 * q * q).sqrt(), 0.2f64.sqrt(), 0.2f64.sqrt()))
+            .collect();
+        let v = VarianceModel::fit(&res, &x, &hold);
+        let at = v.at(0.5);
+        assert!(
+            (at[0] - 0.2).abs() < 1e-9 && (at[1] - 0.2).abs() < 1e-9,
+            "{at:?}"
+        );
+    }
+}

@@ -1,0 +1,208 @@
+//! Search over a candidate's nonlinear parameters (a time constant, a delay, a play width):
+//! a grid over the allowed range, then golden-section refinement of each coordinate around
+//! the best grid point. The objective is a weighted chi-square, so the uncertainty of a
+//! parameter follows from the curvature: `sd = sqrt(2 / f'')`, conditional on the others.
+use serde::{Deserialize, Serialize};
+
+/// One nonlinear parameter and where to look for it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Search {
+    /// Name, with its unit suffix.
+    pub name: &'static str,
+    /// Unit.
+    pub unit: &'static str,
+    /// Smallest value tried.
+    pub lo: f64,
+    /// Largest value tried.
+    pub hi: f64,
+    /// Grid evenly spaced in the logarithm (for scale parameters) rather than linearly.
+    pub log: bool,
+    /// Grid points.
+    pub points: usize,
+}
+
+impl Search {
+    fn to_u(&self, v: f64) -> f64 {
+        if self.log { v.ln() } else { v }
+    }
+    fn from_u(&self, u: f64) -> f64 {
+        if self.log { u.exp() } else { u }
+    }
+    fn u_range(&self) -> (f64, f64) {
+        (self.to_u(self.lo), self.to_u(self.hi))
+    }
+    fn step(&self) -> f64 {
+        let (a, b) = self.u_range();
+        (b - a) / (self.points.max(2) - 1) as f64
+    }
+}
+
+/// The best parameters found.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct Optimum {
+    pub theta: Vec<f64>,
+    pub value: f64,
+    pub sd: Vec<Option<f64>>,
+}
+
+const GOLDEN_ITERATIONS: usize = 16;
+
+/// Minimizes `f` (None where the fit fails) over the searches.
+pub(crate) fn minimize(searches: &[Search], f: impl Fn(&[f64]) -> Option<f64>) -> Option<Optimum> {
+    let eval = |u: &[f64]| -> f64 {
+        let theta: Vec<f64> = searches.iter().zip(u).map(|(s, &u)| s.from_u(u)).collect();
+        f(&theta).filter(|v| v.is_finite()).unwrap_or(f64::INFINITY)
+    };
+    if searches.is_empty() {
+        let value = eval(&[]);
+        return value.is_finite().then(|| Optimum {
+            theta: vec![],
+            value,
+            sd: vec![],
+        });
+    }
+    // Grid (full factorial: at most two parameters per candidate).
+    let mut best_u = vec![0.0; searches.len()];
+    let mut best = f64::INFINITY;
+    let mut idx = vec![0usize; searches.len()];
+    loop {
+        let u: Vec<f64> = searches
+            .iter()
+            .zip(&idx)
+            .map(|(s, &i)| s.u_range().0 + i as f64 * s.step())
+            .collect();
+        let v = eval(&u);
+        if v < best {
+            best = v;
+            best_u = u;
+        }
+        let mut k = 0;
+        loop {
+            if k == idx.len() {
+                break;
+            }
+            idx[k] += 1;
+            if idx[k] < searches[k].points.max(2) {
+                break;
+            }
+            idx[k] = 0;
+            k += 1;
+        }
+        if k == idx.len() {
+            break;
+        }
+    }
+    if !best.is_finite() {
+        return None;
+    }
+    // Golden-section refinement, coordinate by coordinate.
+    let passes = if searches.len() > 1 { 2 } else { 1 };
+    let g = (5f64.sqrt() - 1.0) / 2.0;
+    for _ in 0..passes {
+        for k in 0..searches.len() {
+            let (ulo, uhi) = searches[k].u_range();
+            let h = searches[k].step();
+            let (mut a, mut b) = ((best_u[k] - h).max(ulo), (best_u[k] + h).min(uhi));
+            let at = |x: f64, base: &[f64]| {
+                let mut u = base.to_vec();
+                u[k] = x;
+                eval(&u)
+            };
+            let mut c = b - g * (b - a);
+            let mut d = a + g * (b - a);
+            let (mut fc, mut fd) = (at(c, &best_u), at(d, &best_u));
+            for _ in 0..GOLDEN_ITERATIONS {
+                if fc < fd {
+                    b = d;
+                    d = c;
+                    fd = fc;
+                    c = b - g * (b - a);
+                    fc = at(c, &best_u);
+                } else {
+                    a = c;
+                    c = d;
+                    fc = fd;
+                    d = a + g * (b - a);
+                    fd = at(d, &best_u);
+                }
+            }
+            let (x, fx) = if fc < fd { (c, fc) } else { (d, fd) };
+            if fx < best {
+                best = fx;
+                best_u[k] = x;
+            }
+        }
+    }
+    // Curvature in the search coordinate, converted to the parameter's units.
+    let sd = searches
+        .iter()
+        .enumerate()
+        .map(|(k, s)| {
+            let h = s.step() / 50.0;
+            let mut up = best_u.clone();
+            up[k] += h;
+            let mut down = best_u.clone();
+            down[k] -= h;
+            let curv = (eval(&up) - 2.0 * best + eval(&down)) / (h * h);
+            let sd_u = (2.0 / curv).sqrt();
+            let dtheta_du = if s.log { s.from_u(best_u[k]) } else { 1.0 };
+            (curv.is_finite() && curv > 0.0).then_some(sd_u * dtheta_du)
+        })
+        .collect();
+    Some(Optimum {
+        theta: searches
+            .iter()
+            .zip(&best_u)
+            .map(|(s, &u)| s.from_u(u))
+            .collect(),
+        value: best,
+        sd,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn search(name: &'static str, lo: f64, hi: f64, log: bool) -> Search {
+        Search {
+            name,
+            unit: "",
+            lo,
+            hi,
+            log,
+            points: 9,
+        }
+    }
+
+    #[test]
+    fn finds_the_minimum_of_a_parabola_and_its_curvature_sd() {
+        // chi2 = ((x - 0.37) / 0.02)^2: minimum 0.37, sd 0.02.
+        let o = minimize(&[search("x", 0.0, 1.0, false)], |t| {
+            Some(((t[0] - 0.37) / 0.02).powi(2))
+        })
+        .unwrap();
+        assert!((o.theta[0] - 0.37).abs() < 1e-4, "{:?}", o.theta);
+        let sd = o.sd[0].unwrap();
+        assert!((sd - 0.02).abs() < 1e-4, "sd {sd}");
+    }
+
+    #[test]
+    fn two_parameters_on_a_log_grid() {
+        let o = minimize(
+            &[search("a", 0.01, 10.0, true), search("b", 0.0, 1.0, false)],
+            |t| Some((t[0].ln() - 0.3f64.ln()).powi(2) * 100.0 + (t[1] - 0.6).powi(2) * 100.0),
+        )
+        .unwrap();
+        assert!(
+            (o.theta[0] - 0.3).abs() < 1e-3 && (o.theta[1] - 0.6).abs() < 1e-3,
+            "{:?}",
+            o.theta
+        );
+    }
+
+    #[test]
+    fn all_failures_give_none() {
+        assert!(minimize(&[search("x", 0.0, 1.0, false)], |_| None).is_none());
+    }
+}
