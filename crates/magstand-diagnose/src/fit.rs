@@ -13,10 +13,23 @@ pub(crate) struct Design {
 }
 
 impl Design {
+    /// Prediction of the design with coefficients `coef` (per column, per axis).
+    pub fn predict(&self, coef: &[[f64; 3]]) -> Vec<Vec3> {
+        let n = self.columns.first().map_or(0, Vec::len);
+        (0..n)
+            .map(|r| {
+                coef.iter()
+                    .zip(&self.columns)
+                    .fold(Vec3::zeros(), |v, (c, col)| v + Vec3::from(*c) * col[r])
+            })
+            .collect()
+    }
+
     /// The nominal physics: field linear in the motor currents, each motor's current a smooth
-    /// function of its rotor speed (idle current while driven, then powers of speed; the cubic
-    /// term lets the calibration follow a current law other than the nominal one). Columns are
-    /// sums over motors, because the nominal stand treats all motors alike.
+    /// function of its rotor speed while its ESC drives it (idle current, then powers of speed;
+    /// the cubic term lets the calibration follow a current law other than the nominal one) and
+    /// zero while it coasts. Columns are sums over motors, because the nominal stand treats all
+    /// motors alike.
     pub fn baseline(trace: &Trace) -> Design {
         let n = trace.len();
         let mut d = Design::default();
@@ -27,9 +40,12 @@ impl Design {
                 .collect()
         };
         d.push("driven", sum(&|m, r| trace.driven[m][r]));
-        d.push("speed", sum(&|m, r| trace.speed[m][r]));
-        d.push("speed^2", sum(&|m, r| trace.speed[m][r].powi(2)));
-        d.push("speed^3", sum(&|m, r| trace.speed[m][r].powi(3)));
+        for k in 1..=3 {
+            d.push(
+                format!("speed^{k}"),
+                sum(&|m, r| trace.driven[m][r] * trace.speed[m][r].powi(k)),
+            );
+        }
         d
     }
 
@@ -162,9 +178,20 @@ impl VarianceModel {
         })
     }
 
-    /// Inverse variances of every row.
-    pub fn weights(&self, q: &[f64]) -> Weights {
-        Weights(q.iter().map(|&q| self.at(q).map(|v| 1.0 / v)).collect())
+    /// Inverse variances of every row: the noise at the row's load plus the spread of the
+    /// prediction over the unknown moment, within one sample interval, at which a logged
+    /// command changed (`timing`: prediction with the change at the end of the interval minus
+    /// the one with it at the start; uniform over the interval, so its square over 12).
+    pub fn weights(&self, q: &[f64], timing: &[Vec3]) -> Weights {
+        Weights(
+            q.iter()
+                .zip(timing)
+                .map(|(&q, d)| {
+                    let noise = self.at(q);
+                    std::array::from_fn(|k| 1.0 / (noise[k] + d[k] * d[k] / 12.0))
+                })
+                .collect(),
+        )
     }
 }
 

@@ -14,7 +14,7 @@ use crate::fit::{Design, Fitted, VarianceModel, Weights, fit};
 use crate::locate::{Rows, Signal, locate};
 use crate::optimize::minimize;
 use crate::split::Split;
-use crate::stats::{ljung_box, one_sided_t};
+use crate::stats::{ljung_box, one_sided_t, signed_rank};
 use crate::{DiagnoseError, ValidConfig};
 
 /// Lags of the whiteness test.
@@ -31,13 +31,17 @@ struct Term<'e> {
     theta_sd: Vec<Option<f64>>,
 }
 
-/// The design of a model: its replayed trace, columns, and which columns belong to which term.
+/// The design of a model and which columns belong to which term.
 struct Built {
     design: Design,
     term_columns: Vec<std::ops::Range<usize>>,
 }
 
 fn build(ctx: &Context, terms: &[(&dyn Effect, &[f64])]) -> Built {
+    build_with_lead(ctx, terms, ctx.command_lead)
+}
+
+fn build_with_lead(ctx: &Context, terms: &[(&dyn Effect, &[f64])], lead: f64) -> Built {
     let mut s = ctx.nominal.clone();
     let mut recorded_v = false;
     for (e, theta) in terms {
@@ -49,7 +53,7 @@ fn build(ctx: &Context, terms: &[(&dyn Effect, &[f64])]) -> Built {
     } else {
         None
     };
-    let trace = replay(&s, &ctx.rec.t_s, &ctx.rec.thr, bat_v);
+    let trace = replay(&s, &ctx.rec.t_s, &ctx.rec.thr, bat_v, lead);
     let mut design = Design::baseline(&trace);
     let mut term_columns = Vec::new();
     for (e, theta) in terms {
@@ -168,7 +172,23 @@ fn try_candidate(
             name: effect.name().into(),
             holdout_rmse_ut: Some(holdout_rmse(&after, &ctx.split.holdout)),
             improvement: Some(improvement),
-            p_value: one_sided_t(&blocks),
+            p_value: {
+                if std::env::var("TESTS").is_ok() {
+                    eprintln!(
+                        "{}: t {:?} rank {:?} cluster {:?}",
+                        effect.name(),
+                        crate::stats::one_sided_t(&blocks),
+                        signed_rank(&blocks),
+                        crate::stats::cluster_z(&blocks)
+                    );
+                }
+                // Two tests, Bonferroni-combined: the t-test for gains spread over all
+                // blocks, the signed-rank test for gains confined to the blocks with steps.
+                match (one_sided_t(&blocks), signed_rank(&blocks)) {
+                    (Some(a), Some(b)) => Some((2.0 * a.min(b)).min(1.0)),
+                    (a, b) => a.or(b),
+                }
+            },
             note: None,
         },
         fitted: Some((opt.theta, opt.sd, fitted)),
@@ -180,6 +200,7 @@ fn fit_model(
     ctx: &Context,
     terms: &[Term],
     q: &[f64],
+    timing: &[Vec3],
     weights: Option<&Weights>,
 ) -> Result<(Built, Fitted, Weights), DiagnoseError> {
     let y = &ctx.rec.mag_ut;
@@ -205,9 +226,54 @@ fn fit_model(
     )
     .map_err(singular)?;
     let var = VarianceModel::fit(&first.residuals(y), q, &ctx.split.holdout);
-    let w = var.weights(q);
+    let w = var.weights(q, timing);
     let fitted = fit(&built.design, y, None, &w, &ctx.split.holdout).map_err(singular)?;
     Ok((built, fitted, w))
+}
+
+/// The moment within each interval at which logged command changes take effect (searched in
+/// 0..1 on the baseline), and the spread of the baseline prediction between the two extremes,
+/// which sets the timing part of every row's variance.
+fn calibrate_timing(ctx: &Context) -> Result<(f64, Vec<Vec3>), DiagnoseError> {
+    let y = &ctx.rec.mag_ut;
+    let unit = Weights(vec![[1.0; 3]; y.len()]);
+    let chi2 = |lead: f64| {
+        fit(
+            &build_with_lead(ctx, &[], lead).design,
+            y,
+            None,
+            &unit,
+            &ctx.split.holdout,
+        )
+        .ok()
+        .map(|f| f.chi2_fit)
+    };
+    let lead = crate::optimize::minimize(
+        &[crate::Search {
+            name: "command_lead",
+            unit: "interval",
+            lo: 0.0,
+            hi: 1.0,
+            log: false,
+            points: 5,
+        }],
+        |t| chi2(t[0]),
+    )
+    .map_or(0.5, |o| o.theta[0]);
+    let (early, late) = (
+        build_with_lead(ctx, &[], 0.0),
+        build_with_lead(ctx, &[], 1.0),
+    );
+    let f = fit(&early.design, y, None, &unit, &ctx.split.holdout).map_err(|e| {
+        DiagnoseError::Singular {
+            origin: ctx.rec_origin.clone(),
+            message: format!(
+                "{e:?}: the recording needs motors off and at least four distinct throttle levels"
+            ),
+        }
+    })?;
+    let (a, b) = (early.design.predict(&f.coef), late.design.predict(&f.coef));
+    Ok((lead, a.iter().zip(&b).map(|(a, b)| b - a).collect()))
 }
 
 /// Diagnoses `rec` (named `origin` in messages) against the nominal scenario.
@@ -245,7 +311,7 @@ pub fn diagnose(
     let mut scenario = nominal.params().clone();
     // The program is the recording's; the nominal stand's own logging delay is physics.
     scenario.study = Default::default();
-    let nominal_trace = replay(&scenario, &rec.t_s, &rec.thr, None);
+    let nominal_trace = replay(&scenario, &rec.t_s, &rec.thr, None, 0.5);
     let avionics = scenario.supply.avionics_current_a();
     let max_motor_a = nominal_trace
         .total_a
@@ -270,15 +336,22 @@ pub fn diagnose(
         split: &split,
         nominal_trace: &nominal_trace,
         rec_origin: origin.to_string(),
+        command_lead: 0.5,
+    };
+    let (command_lead, timing) = calibrate_timing(&ctx)?;
+    let ctx = Context {
+        command_lead,
+        ..ctx
     };
     let rows = Rows::new(rec, &split.block);
+    let judged = split.holdout.clone();
     let y = &rec.mag_ut;
     let all_rows = vec![true; rec.len()];
 
     // Baseline.
-    let (base_built, base_fit, base_w) = fit_model(&ctx, &[], &q, None)?;
+    let (base_built, base_fit, base_w) = fit_model(&ctx, &[], &q, &timing, None)?;
     let base_resid = base_fit.residuals(y);
-    let base_rmse = holdout_rmse(&base_resid, &split.holdout);
+    let base_rmse = holdout_rmse(&base_resid, &judged);
     let base_z = standardized(&base_resid, &base_w);
     let base_white = whiteness(&base_z, &split);
     let white_threshold = cfg.significance / 3.0;
@@ -359,8 +432,8 @@ pub fn diagnose(
             params: Vec::new(),
             explanation: open[i].explanation().into(),
             located: locate(&rows, &change, &all_rows, Signal::Change, cfg.significance),
-            holdout_rmse_before_ut: holdout_rmse(&before, &split.holdout),
-            holdout_rmse_after_ut: holdout_rmse(&after, &split.holdout),
+            holdout_rmse_before_ut: holdout_rmse(&before, &judged),
+            holdout_rmse_after_ut: holdout_rmse(&after, &judged),
             p_value: tried[i].result.p_value.unwrap_or(1.0),
         });
         stages.push((format!("+ {}", open[i].name()), after));
@@ -369,14 +442,14 @@ pub fn diagnose(
             theta,
             theta_sd,
         });
-        let (_, f, w2) = fit_model(&ctx, &terms, &q, Some(w))?;
+        let (_, f, w2) = fit_model(&ctx, &terms, &q, &timing, Some(w))?;
         current = (f, w2);
         round.accepted = accepted;
         rounds.push(round);
     }
 
     // Final joint model: parameters of every accepted term.
-    let (final_built, final_fit, final_w) = fit_model(&ctx, &terms, &q, Some(&current.1))?;
+    let (final_built, final_fit, final_w) = fit_model(&ctx, &terms, &q, &timing, Some(&current.1))?;
     for (t, (report, cols)) in terms
         .iter()
         .zip(reports.iter_mut().zip(&final_built.term_columns))
@@ -394,7 +467,7 @@ pub fn diagnose(
     let final_white = whiteness(&final_z, &split);
     let mut verdict: Vec<String> = terms.iter().map(|t| t.effect.name().to_string()).collect();
     if final_white.iter().any(|&p| p < white_threshold) {
-        let rmse = holdout_rmse(&final_resid, &split.holdout);
+        let rmse = holdout_rmse(&final_resid, &judged);
         reports.push(EffectReport {
             name: UNEXPLAINED.into(),
             params: Vec::new(),
@@ -428,7 +501,13 @@ pub fn diagnose(
     }
     let augmented = augmented.check(&format!("augmented {}", nominal.origin()), None)?;
     let sim_after = {
-        let tr = replay(augmented.params(), &rec.t_s, &rec.thr, None);
+        let tr = replay(
+            augmented.params(),
+            &rec.t_s,
+            &rec.thr,
+            None,
+            ctx.command_lead,
+        );
         let design = Design::baseline(&tr);
         let f = fit(&design, y, Some(&tr.extra_ut), &final_w, &split.holdout).map_err(|_| {
             DiagnoseError::Singular {
@@ -436,7 +515,7 @@ pub fn diagnose(
                 message: "the augmented simulation cannot be calibrated".into(),
             }
         })?;
-        holdout_rmse(&f.residuals(y), &split.holdout)
+        holdout_rmse(&f.residuals(y), &judged)
     };
 
     let baseline = Baseline {
@@ -473,7 +552,7 @@ pub fn diagnose(
             holdout_rmse_after_ut: sim_after,
         },
         rounds,
-        series: series(rec, &split, &stages),
+        series: series(rec, &judged, &stages),
         settings: Settings {
             significance: cfg.significance,
             holdout_every: cfg.holdout_every,
@@ -485,8 +564,8 @@ pub fn diagnose(
 }
 
 /// Held-out residuals of every stage at no more than [`SERIES_POINTS`] rows.
-fn series(rec: &Recording, split: &Split, stages: &[(String, Vec<Vec3>)]) -> Series {
-    let held: Vec<usize> = (0..rec.len()).filter(|&r| split.holdout[r]).collect();
+fn series(rec: &Recording, judged: &[bool], stages: &[(String, Vec<Vec3>)]) -> Series {
+    let held: Vec<usize> = (0..rec.len()).filter(|&r| judged[r]).collect();
     let stride = held.len().div_ceil(SERIES_POINTS).max(1);
     let rows: Vec<usize> = held.into_iter().step_by(stride).collect();
     Series {

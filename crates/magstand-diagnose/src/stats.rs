@@ -19,6 +19,61 @@ pub(crate) fn one_sided_t(x: &[f64]) -> Option<f64> {
     Some(dist.sf(t))
 }
 
+/// One-sided p-value that the values of `x` lean above zero: the Wilcoxon signed-rank test
+/// (normal approximation with tie correction; zeros dropped). Unlike the t-test it keeps its
+/// power when the improvement sits in a few blocks (those with command steps) and the others
+/// hold only noise. `None` with fewer than five non-zero values.
+pub(crate) fn signed_rank(x: &[f64]) -> Option<f64> {
+    let mut v: Vec<f64> = x
+        .iter()
+        .copied()
+        .filter(|v| *v != 0.0 && v.is_finite())
+        .collect();
+    let n = v.len();
+    if n < 5 {
+        return None;
+    }
+    v.sort_by(|a, b| a.abs().total_cmp(&b.abs()));
+    let (mut w_plus, mut tie_term) = (0.0, 0.0);
+    let mut i = 0;
+    while i < n {
+        let mut j = i;
+        while j + 1 < n && v[j + 1].abs() == v[i].abs() {
+            j += 1;
+        }
+        let rank = (i + j) as f64 / 2.0 + 1.0;
+        let t = (j - i + 1) as f64;
+        tie_term += t * t * t - t;
+        w_plus += v[i..=j].iter().filter(|x| **x > 0.0).count() as f64 * rank;
+        i = j + 1;
+    }
+    let nf = n as f64;
+    let mean = nf * (nf + 1.0) / 4.0;
+    let var = nf * (nf + 1.0) * (2.0 * nf + 1.0) / 24.0 - tie_term / 48.0;
+    let z = (w_plus - mean - 0.5) / var.sqrt();
+    statrs::distribution::Normal::new(0.0, 1.0)
+        .ok()
+        .map(|d| d.sf(z))
+}
+
+/// One-sided p-value that the sum of independent units `x` is above zero, with the variance
+/// estimated from the units themselves and not centred (cluster-robust): `z = sum / sqrt(sum
+/// of squares)`. Under the null (a term that only fits noise), each unit has mean at most zero,
+/// so the test is conservative; a gain confined to a few units still counts in full.
+pub(crate) fn cluster_z(x: &[f64]) -> Option<f64> {
+    if x.len() < 5 {
+        return None;
+    }
+    let s: f64 = x.iter().sum();
+    let ss: f64 = x.iter().map(|v| v * v).sum();
+    if ss <= 0.0 {
+        return None;
+    }
+    statrs::distribution::Normal::new(0.0, 1.0)
+        .ok()
+        .map(|d| d.sf(s / ss.sqrt()))
+}
+
 /// Upper-tail p-value of a chi-square statistic with `dof` degrees of freedom.
 pub(crate) fn chi2_sf(stat: f64, dof: f64) -> f64 {
     ChiSquared::new(dof.max(1e-9)).map_or(1.0, |d| d.sf(stat))
@@ -100,6 +155,24 @@ mod tests {
         let zero: Vec<f64> = (0..30).map(|k| ((k % 5) as f64 - 2.0) * 0.1).collect();
         assert!(one_sided_t(&zero).unwrap() > 0.4);
         assert!(one_sided_t(&[1.0, 2.0]).is_none());
+    }
+
+    #[test]
+    fn signed_rank_sees_improvement_in_a_few_units_and_not_in_noise() {
+        // Ten units with a clear gain among thirty that hold noise of both signs.
+        let mut x: Vec<f64> = (0..30)
+            .map(|k| if k % 2 == 0 { 0.01 } else { -0.01 } * (k as f64 + 1.0))
+            .collect();
+        assert!(
+            signed_rank(&x).unwrap() > 0.2,
+            "noise alone: {:?}",
+            signed_rank(&x)
+        );
+        for v in x.iter_mut().step_by(3) {
+            *v = 5.0;
+        }
+        assert!(signed_rank(&x).unwrap() < 1e-3, "{:?}", signed_rank(&x));
+        assert!(signed_rank(&[1.0, 0.0, 0.0]).is_none());
     }
 
     #[test]

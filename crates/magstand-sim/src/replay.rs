@@ -50,9 +50,20 @@ pub struct Trace {
 /// the electrical parts of `scenario`. With `bat_v`, the motors see the recorded supply voltage
 /// instead of the supply model's.
 ///
+/// `command_lead` (0..1) is the fraction of the interval before a row during which that row's
+/// command already acts: 0 holds each command from its own row on, as the simulator's replay
+/// program does; 0.5 puts each change halfway between samples, the unbiased choice for a log
+/// that only says a command changed somewhere in the interval.
+///
 /// The caller passes a checked scenario (or one changed within checked ranges), strictly
 /// increasing times, and columns as long as `t_s`; the recording reader guarantees both.
-pub fn replay(scenario: &Scenario, t_s: &[f64], thr: &[Vec<f64>], bat_v: Option<&[f64]>) -> Trace {
+pub fn replay(
+    scenario: &Scenario,
+    t_s: &[f64],
+    thr: &[Vec<f64>],
+    bat_v: Option<&[f64]>,
+    command_lead: f64,
+) -> Trace {
     let p = scenario;
     let n_motors = p.motors.count;
     let rows = t_s.len();
@@ -83,19 +94,33 @@ pub fn replay(scenario: &Scenario, t_s: &[f64], thr: &[Vec<f64>], bat_v: Option<
         extra_ut: Vec::with_capacity(rows),
     };
     let mut total_a = avionics;
+    // The command that acted last, per motor: it decides whether the ESC is driving.
+    let mut acting: Vec<usize> = vec![0; n_motors];
     for r in 0..rows {
         if r > 0 {
             let dt = t_s[r] - t_s[r - 1];
             let subs = (dt / MAX_SUBSTEP_S).ceil().max(1.0);
             let h = dt / subs;
-            for _ in 0..subs as usize {
+            let lead_from = dt * (1.0 - command_lead.clamp(0.0, 1.0));
+            for k in 0..subs as usize {
                 let voltage = match bat_v {
                     Some(v) => v[r - 1],
                     None => supply.voltage_v(&p.supply, total_a),
                 };
+                // A substep that straddles the switch is split at it.
+                let (a, b) = (k as f64 * h, (k + 1) as f64 * h);
+                let parts = [
+                    (r - 1, (lead_from.min(b) - a).max(0.0)),
+                    (r, (b - lead_from.max(a)).max(0.0)),
+                ];
                 total_a = avionics;
                 for (m, st) in motors.iter_mut().enumerate() {
-                    st.step(&p.motors, m, command(m, r - 1), voltage, h);
+                    for &(row, len) in &parts {
+                        if len > 0.0 {
+                            st.step(&p.motors, m, command(m, row), voltage, len);
+                            acting[m] = row;
+                        }
+                    }
                     total_a += st.current_a;
                 }
                 supply.step(total_a, h);
@@ -110,7 +135,7 @@ pub fn replay(scenario: &Scenario, t_s: &[f64], thr: &[Vec<f64>], bat_v: Option<
         let mut extra = hyst_ut + p.thermal.offset_ut(thermal.temp_c);
         for (m, st) in motors.iter().enumerate() {
             tr.speed[m].push(st.speed_rad_s / full_speed);
-            tr.driven[m].push(if p.motors.duty(command(m, r)) > 0.0 {
+            tr.driven[m].push(if p.motors.duty(command(m, acting[m])) > 0.0 {
                 1.0
             } else {
                 0.0
@@ -218,7 +243,7 @@ mod tests {
             .check("t", None)
             .unwrap();
         let rec = simulate(&s, 3);
-        let tr = replay(s.params(), &rec.t_s, &rec.thr, None);
+        let tr = replay(s.params(), &rec.t_s, &rec.thr, None, 0.0);
         let (a, v) = (rec.bat_a.clone().unwrap(), rec.bat_v.clone().unwrap());
         for r in 0..rec.len() {
             assert!(
@@ -238,7 +263,7 @@ mod tests {
             .check("t", None)
             .unwrap();
         let rec = simulate(&s, 3);
-        let tr = replay(s.params(), &rec.t_s, &rec.thr, None);
+        let tr = replay(s.params(), &rec.t_s, &rec.thr, None, 0.0);
         let mut late = tr.clone();
         late.delay(0.03); // one and a half rows at 50 Hz
         for r in 2..tr.len() {

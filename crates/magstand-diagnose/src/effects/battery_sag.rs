@@ -60,7 +60,7 @@ impl BatterySag {
         let o = minimize(&searches(), |theta| {
             let mut b = s.clone();
             set_battery(ctx, &mut b, theta);
-            let tr = replay(&b, &ctx.rec.t_s, &ctx.rec.thr, None);
+            let tr = replay(&b, &ctx.rec.t_s, &ctx.rec.thr, None, ctx.command_lead);
             Some(
                 tr.voltage_v
                     .iter()

@@ -38,6 +38,10 @@ pub struct Context<'a> {
     pub nominal_trace: &'a Trace,
     /// The recording's name, for messages.
     pub rec_origin: String,
+    /// Where within the interval before a row its command change is taken to happen (0: at
+    /// the previous sample, 1: at the row), calibrated with the baseline: logs differ in
+    /// whether commands are stamped when issued or when sampled.
+    pub command_lead: f64,
 }
 
 /// A fitted parameter with its unit and standard uncertainty.
