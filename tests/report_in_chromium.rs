@@ -71,10 +71,21 @@ fn every_figure_renders_with_size_and_content() {
     )
     .unwrap();
     let model = FitConfig::automatic().check().unwrap().fit(&data).unwrap();
+    let nominal = magstand_tests::scenario("czyba2015-stair", &["stand.enabled=false"]);
+    let diagnosis = magstand_diagnose::diagnose(
+        &valid,
+        "validation",
+        &nominal,
+        &magstand_diagnose::DiagnoseConfig::default()
+            .check()
+            .unwrap(),
+    )
+    .unwrap();
     let report = build(&ReportInputs {
         recording: &valid,
         recording_name: "validation".into(),
         model: Some(&model),
+        diagnosis: Some(&diagnosis),
         study: None,
         provenance: vec![("test".into(), "report_in_chromium".into())],
     })
@@ -84,7 +95,7 @@ fn every_figure_renders_with_size_and_content() {
         .iter()
         .flat_map(|s| s.figures.iter().map(|f| format!("fig-{}", f.name)))
         .collect();
-    assert!(expected.len() >= 9, "figures: {expected:?}");
+    assert!(expected.len() >= 15, "figures: {expected:?}");
     let dir = tempfile::tempdir().unwrap();
     report.write(dir.path()).unwrap();
     let page = dir.path().join("probe.html");

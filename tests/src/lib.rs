@@ -1,4 +1,6 @@
 //! Helpers shared by the end-to-end tests in this folder.
+
+pub mod concealed;
 use magstand_core::Recording;
 use magstand_sim::{Scenario, ValidScenario, simulate};
 

@@ -122,10 +122,26 @@ pub fn run(a: DemoArgs) -> Result<()> {
             format!("{} ({})", model_path.display(), model.method),
         ),
     ]);
+    // The validation run against its own nominal physics: nothing should be left out.
+    let diagnosis = magstand_diagnose::diagnose(
+        &valid,
+        &valid_path.display().to_string(),
+        &valid_s,
+        &magstand_diagnose::DiagnoseConfig::default().check()?,
+    )?;
+    println!(
+        "diagnosis of the validation run against its scenario: {}",
+        if diagnosis.verdict.is_empty() {
+            "no significant mismatch".to_string()
+        } else {
+            diagnosis.verdict.join(", ")
+        }
+    );
     let page = crate::report_cmd::write_report(
         &valid,
         &valid_path.display().to_string(),
         Some(&model),
+        Some(&diagnosis),
         None,
         prov,
         &a.out.join("report"),

@@ -9,6 +9,7 @@ use clap::{Parser, Subcommand};
 
 mod compensate_cmd;
 mod demo;
+mod diagnose_cmd;
 mod export_cmd;
 mod files;
 mod fit_cmd;
@@ -34,6 +35,9 @@ enum Command {
     Fit(fit_cmd::FitArgs),
     /// Remove a model's predicted disturbance from a recording.
     Compensate(compensate_cmd::CompensateArgs),
+    /// Locate a mismatch between a recording and the nominal simulation, name the physics left
+    /// out, model it, and show the fit improve.
+    Diagnose(diagnose_cmd::DiagnoseArgs),
     /// Export a model as PX4 or ArduPilot parameters, or as a C header.
     Export(export_cmd::ExportArgs),
     /// Monte Carlo accuracy study against the Cramer-Rao bound (parallel, shardable).
@@ -50,6 +54,7 @@ fn main() -> ExitCode {
         Command::Simulate(a) => simulate_cmd::run(a),
         Command::Fit(a) => fit_cmd::run(a),
         Command::Compensate(a) => compensate_cmd::run(a),
+        Command::Diagnose(a) => diagnose_cmd::run(a),
         Command::Export(a) => export_cmd::run(a),
         Command::Montecarlo(a) => montecarlo_cmd::run(a),
         Command::Report(a) => report_cmd::run(a),

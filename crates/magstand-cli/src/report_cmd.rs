@@ -7,6 +7,7 @@ use clap::Args;
 
 use crate::files;
 use magstand_core::{Recording, recording_csv};
+use magstand_diagnose::Diagnosis;
 use magstand_ident::Model;
 use magstand_report::{ReportInputs, build};
 use magstand_study::{StudyResult, Summary};
@@ -20,6 +21,9 @@ pub struct ReportArgs {
     /// Model file written by `magstand fit`.
     #[arg(long)]
     model: Option<PathBuf>,
+    /// Diagnosis file written by `magstand diagnose --json`.
+    #[arg(long)]
+    diagnosis: Option<PathBuf>,
     /// Output folder of a `magstand montecarlo` study.
     #[arg(long)]
     montecarlo: Option<PathBuf>,
@@ -44,6 +48,7 @@ pub fn write_report(
     rec: &Recording,
     recording_name: &str,
     model: Option<&Model>,
+    diagnosis: Option<&Diagnosis>,
     study_dir: Option<&Path>,
     mut provenance: Vec<(String, String)>,
     out: &Path,
@@ -61,6 +66,7 @@ pub fn write_report(
         recording: rec,
         recording_name: recording_name.into(),
         model,
+        diagnosis,
         study: study.as_ref().map(|(s, o)| (s, o.as_slice())),
         provenance,
     };
@@ -75,10 +81,14 @@ pub fn run(a: ReportArgs) -> Result<()> {
     if let Some(m) = &a.model {
         inputs.push(m);
     }
+    if let Some(d) = &a.diagnosis {
+        inputs.push(d);
+    }
     let page = a.out.join("index.html");
     files::refuse_overwriting_inputs(&inputs, &[&page])?;
     let rec = recording_csv::read(&a.recording)?;
     let model = a.model.as_deref().map(Model::load).transpose()?;
+    let diagnosis = a.diagnosis.as_deref().map(Diagnosis::load).transpose()?;
     let mut prov = provenance();
     prov.push(("recording".into(), a.recording.display().to_string()));
     if let (Some(p), Some(m)) = (&a.model, &model) {
@@ -88,6 +98,7 @@ pub fn run(a: ReportArgs) -> Result<()> {
         &rec,
         &a.recording.display().to_string(),
         model.as_ref(),
+        diagnosis.as_ref(),
         a.montecarlo.as_deref(),
         prov,
         &a.out,

@@ -149,6 +149,17 @@ pub struct Diagnosis {
     pub augmented_scenario: String,
 }
 
+/// `value ± sd` with two significant digits of the uncertainty (four of the value without one).
+pub fn value_with_sd(value: f64, sd: Option<f64>) -> String {
+    match sd.filter(|s| *s > 0.0 && s.is_finite()) {
+        Some(sd) => {
+            let decimals = (1.0 - sd.log10().floor()).clamp(0.0, 9.0) as usize;
+            format!("{value:.decimals$} ± {sd:.decimals$}")
+        }
+        None => format!("{value:.4}"),
+    }
+}
+
 impl Diagnosis {
     /// Reads a diagnosis file.
     pub fn load(path: &Path) -> Result<Diagnosis, DiagnoseError> {
@@ -194,10 +205,7 @@ impl Diagnosis {
             let params: Vec<String> = e
                 .params
                 .iter()
-                .map(|p| match p.sd {
-                    Some(sd) => format!("{} = {:.4} ± {:.2} {}", p.name, p.value, sd, p.unit),
-                    None => format!("{} = {:.4} {}", p.name, p.value, p.unit),
-                })
+                .map(|p| format!("{} = {} {}", p.name, value_with_sd(p.value, p.sd), p.unit))
                 .collect();
             s.push_str(&format!(
                 "  {}: {} -> {} (p = {:.2e}); throttle {:.2}..{:.2}, t {:.0}..{:.0} s, axes {}, {} ramps, {}, {}\n",

@@ -34,6 +34,8 @@ struct Term<'e> {
 /// The design of a model and which columns belong to which term.
 struct Built {
     design: Design,
+    /// What the nominal physics fixes (per-motor wiring differences, switched-on extras).
+    fixed: Vec<Vec3>,
     term_columns: Vec<std::ops::Range<usize>>,
 }
 
@@ -65,6 +67,7 @@ fn build_with_lead(ctx: &Context, terms: &[(&dyn Effect, &[f64])], lead: f64) ->
     }
     Built {
         design,
+        fixed: trace.extra_ut,
         term_columns,
     }
 }
@@ -154,7 +157,7 @@ fn try_candidate(
         let mut all = base.clone();
         all.push((effect, theta));
         let b = build(ctx, &all);
-        fit(&b.design, y, None, weights, &ctx.split.holdout).ok()
+        fit(&b.design, y, Some(&b.fixed), weights, &ctx.split.holdout).ok()
     };
     let Some(opt) = minimize(&effect.search(ctx), |theta| with(theta).map(|f| f.chi2_fit)) else {
         return fail(
@@ -227,7 +230,8 @@ fn fit_model(
     .map_err(singular)?;
     let var = VarianceModel::fit(&first.residuals(y), q, &ctx.split.holdout);
     let w = var.weights(q, timing);
-    let fitted = fit(&built.design, y, None, &w, &ctx.split.holdout).map_err(singular)?;
+    let fitted =
+        fit(&built.design, y, Some(&built.fixed), &w, &ctx.split.holdout).map_err(singular)?;
     Ok((built, fitted, w))
 }
 
@@ -264,16 +268,24 @@ fn calibrate_timing(ctx: &Context) -> Result<(f64, Vec<Vec3>), DiagnoseError> {
         build_with_lead(ctx, &[], 0.0),
         build_with_lead(ctx, &[], 1.0),
     );
-    let f = fit(&early.design, y, None, &unit, &ctx.split.holdout).map_err(|e| {
-        DiagnoseError::Singular {
-            origin: ctx.rec_origin.clone(),
-            message: format!(
-                "{e:?}: the recording needs motors off and at least four distinct throttle levels"
-            ),
-        }
+    let f = fit(
+        &early.design,
+        y,
+        Some(&early.fixed),
+        &unit,
+        &ctx.split.holdout,
+    )
+    .map_err(|e| DiagnoseError::Singular {
+        origin: ctx.rec_origin.clone(),
+        message: format!(
+            "{e:?}: the recording needs motors off and at least four distinct throttle levels"
+        ),
     })?;
     let (a, b) = (early.design.predict(&f.coef), late.design.predict(&f.coef));
-    Ok((lead, a.iter().zip(&b).map(|(a, b)| b - a).collect()))
+    let spread = (0..a.len())
+        .map(|r| (b[r] + late.fixed[r]) - (a[r] + early.fixed[r]))
+        .collect();
+    Ok((lead, spread))
 }
 
 /// Diagnoses `rec` (named `origin` in messages) against the nominal scenario.

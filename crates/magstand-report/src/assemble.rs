@@ -16,6 +16,8 @@ pub struct ReportInputs<'a> {
     pub recording_name: String,
     /// The model to judge, if any.
     pub model: Option<&'a Model>,
+    /// A mismatch diagnosis of the recording, if any.
+    pub diagnosis: Option<&'a magstand_diagnose::Diagnosis>,
     /// A Monte Carlo study's summary and rows, if any.
     pub study: Option<(&'a Summary, &'a [MethodOutcome])>,
     /// What was run, shown in the header.
@@ -206,6 +208,10 @@ pub fn build(inputs: &ReportInputs) -> Result<Report, ReportError> {
         }
         s.tables.push((head, rows));
         report.sections.push(s);
+    }
+
+    if let Some(d) = inputs.diagnosis {
+        report.sections.push(crate::diagnosis::section(d)?);
     }
 
     if let Some((summary, outcomes)) = inputs.study {

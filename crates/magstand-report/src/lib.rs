@@ -18,6 +18,7 @@
 
 mod assemble;
 pub mod chart;
+pub mod diagnosis;
 mod error;
 pub mod figures;
 pub mod montecarlo;

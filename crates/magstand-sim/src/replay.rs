@@ -40,9 +40,10 @@ pub struct Trace {
     pub temp_c: Vec<f64>,
     /// Output of the hysteresis play operator on the supply current, A.
     pub play_a: Vec<f64>,
-    /// Field that the switched-on extras add at the sensor (thermal offset, hysteresis,
-    /// extra per-motor wiring gains), µT. The main wiring field is not included: its gains are
-    /// what a diagnosis calibrates.
+    /// Field that the scenario fixes beyond a common gain on the motor currents, µT: the
+    /// thermal offset and hysteresis when switched on, and the part of the wiring field that
+    /// differs between motors (each motor's gain minus the motors' mean gain, times its
+    /// current). The common gains are left out: they are what a diagnosis calibrates.
     pub extra_ut: Vec<Vec3>,
 }
 
@@ -75,12 +76,12 @@ pub fn replay(
     let mut motors = vec![MotorState::default(); n_motors];
     let mut thermal = ThermalState::new(&p.thermal);
     let mut hysteresis = HysteresisState::default();
-    let gains: Vec<Vec3> = p
+    let all = p
         .wiring
-        .extra_motor_ut_per_a
-        .iter()
-        .map(|g| Vec3::from(*g))
-        .collect();
+        .gains(n_motors, Vec3::from(p.magnetometer.position_m))
+        .motor_ut_per_a;
+    let mean = all.iter().sum::<Vec3>() / n_motors as f64;
+    let gains: Vec<Vec3> = all.iter().map(|g| g - mean).collect();
 
     let mut tr = Trace {
         t_s: t_s.to_vec(),

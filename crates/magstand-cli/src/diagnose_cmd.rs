@@ -1,0 +1,90 @@
+//! `magstand diagnose`: where a recording and the nominal simulation differ, what physics was
+//! left out, and how much better the fit gets with it.
+use std::path::PathBuf;
+
+use anyhow::{Context, Result};
+use clap::Args;
+
+use crate::files;
+use crate::simulate_cmd::load_scenario;
+use magstand_core::recording_csv;
+use magstand_diagnose::{DEFAULT_NOMINAL, DiagnoseConfig, diagnose};
+use magstand_sim::Scenario;
+
+/// Arguments of `magstand diagnose`.
+#[derive(Args)]
+pub struct DiagnoseArgs {
+    /// Recording CSV.
+    #[arg(long)]
+    recording: PathBuf,
+    /// Nominal scenario (a file, or builtin:NAME); its program is replaced by the recording's
+    /// commands. Without it, the default nominal stand (simulator defaults, 12 V bench supply).
+    #[arg(long)]
+    scenario: Option<String>,
+    /// Write the diagnosis as JSON (format magstand-diagnosis, version 1).
+    #[arg(long)]
+    json: Option<PathBuf>,
+    /// Write the augmented scenario: the nominal one with every accepted effect switched on.
+    #[arg(long)]
+    augmented: Option<PathBuf>,
+    /// Write an HTML report with the residual figures into this folder.
+    #[arg(long)]
+    report: Option<PathBuf>,
+    /// Family-wise significance of each decision.
+    #[arg(long, default_value_t = 0.01)]
+    significance: f64,
+    /// Threads for the candidates (0: all cores).
+    #[arg(long, default_value_t = 0)]
+    threads: usize,
+}
+
+/// Runs `magstand diagnose`.
+pub fn run(a: DiagnoseArgs) -> Result<()> {
+    let page = a.report.as_ref().map(|d| d.join("index.html"));
+    let mut outputs: Vec<&std::path::Path> = Vec::new();
+    outputs.extend(a.json.as_deref());
+    outputs.extend(a.augmented.as_deref());
+    outputs.extend(page.as_deref());
+    let mut inputs: Vec<&std::path::Path> = vec![&a.recording];
+    let scenario_path = a
+        .scenario
+        .as_deref()
+        .filter(|s| !s.starts_with("builtin:"))
+        .map(PathBuf::from);
+    inputs.extend(scenario_path.as_deref());
+    files::refuse_overwriting_inputs(&inputs, &outputs)?;
+    let config = DiagnoseConfig {
+        significance: a.significance,
+        ..Default::default()
+    }
+    .check()?;
+    let nominal = match &a.scenario {
+        Some(s) => load_scenario(s, &[])?,
+        None => Scenario::from_toml_str(DEFAULT_NOMINAL, "default nominal stand")
+            .and_then(|s| s.check("default nominal stand", None))?,
+    };
+    let rec = recording_csv::read(&a.recording)?;
+    let name = a.recording.display().to_string();
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(a.threads)
+        .build()
+        .context("starting the worker threads")?;
+    let d = pool.install(|| diagnose(&rec, &name, &nominal, &config))?;
+    print!("{}", d.summary());
+    if let Some(p) = &a.json {
+        d.save(p)?;
+        println!("wrote {}", p.display());
+    }
+    if let Some(p) = &a.augmented {
+        magstand_core::atomic_file::write_bytes(p, d.augmented_scenario.as_bytes())?;
+        println!("wrote {}", p.display());
+    }
+    if let Some(dir) = &a.report {
+        let mut prov = crate::report_cmd::provenance();
+        prov.push(("recording".into(), name.clone()));
+        prov.push(("nominal scenario".into(), nominal.origin().into()));
+        let page = crate::report_cmd::write_report(&rec, &name, None, Some(&d), None, prov, dir)?;
+        println!("wrote {}", page.display());
+    }
+    Ok(())
+}

@@ -1,0 +1,53 @@
+//! Fast subset of the concealed-effect suite (one seed per case, a few cases): the diagnosis
+//! is never told which effect was switched on. The full suite, every case with five seeds, is
+//! `cargo run --release -p magstand-tests --bin concealed-suite` (results/diagnosis.md).
+use magstand_tests::concealed::{Outcome, cases, run_case};
+
+fn case(label: &str, seed: u64) -> Outcome {
+    let c = cases()
+        .into_iter()
+        .find(|c| c.label == label)
+        .unwrap_or_else(|| panic!("no case {label}"));
+    run_case(&c, seed)
+}
+
+fn assert_found(o: &Outcome) {
+    assert!(
+        o.named_right && o.param_failures.is_empty() && o.improved,
+        "{} seed {}: verdict {:?}, parameter misses {:?}, improved {}\n{}",
+        o.label,
+        o.seed,
+        o.verdict,
+        o.param_failures,
+        o.improved,
+        o.diagnosis.summary()
+    );
+}
+
+#[test]
+fn an_effect_free_recording_with_power_and_temperature_columns_comes_out_clean() {
+    assert_found(&case("control, bat_v and temp_c logged", 11));
+}
+
+#[test]
+fn a_slow_spin_up_is_named_current_lag_with_its_time_constant() {
+    assert_found(&case("current_lag", 12));
+}
+
+#[test]
+fn board_heating_without_a_temperature_column_is_named_thermal_drift() {
+    assert_found(&case("thermal_drift", 13));
+}
+
+#[test]
+fn two_effects_at_once_are_both_found() {
+    assert_found(&case("thermal_drift + current_lag", 14));
+}
+
+#[test]
+fn a_field_outside_the_catalog_is_called_unexplained_not_forced_onto_a_name() {
+    assert_found(&case(
+        "outside the catalog (external alternating field)",
+        15,
+    ));
+}
