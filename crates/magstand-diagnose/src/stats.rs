@@ -56,24 +56,6 @@ pub(crate) fn signed_rank(x: &[f64]) -> Option<f64> {
         .map(|d| d.sf(z))
 }
 
-/// One-sided p-value that the sum of independent units `x` is above zero, with the variance
-/// estimated from the units themselves and not centred (cluster-robust): `z = sum / sqrt(sum
-/// of squares)`. Under the null (a term that only fits noise), each unit has mean at most zero,
-/// so the test is conservative; a gain confined to a few units still counts in full.
-pub(crate) fn cluster_z(x: &[f64]) -> Option<f64> {
-    if x.len() < 5 {
-        return None;
-    }
-    let s: f64 = x.iter().sum();
-    let ss: f64 = x.iter().map(|v| v * v).sum();
-    if ss <= 0.0 {
-        return None;
-    }
-    statrs::distribution::Normal::new(0.0, 1.0)
-        .ok()
-        .map(|d| d.sf(s / ss.sqrt()))
-}
-
 /// Upper-tail p-value of a chi-square statistic with `dof` degrees of freedom.
 pub(crate) fn chi2_sf(stat: f64, dof: f64) -> f64 {
     ChiSquared::new(dof.max(1e-9)).map_or(1.0, |d| d.sf(stat))

@@ -1,0 +1,138 @@
+//! `magstand diagnose` from the command line: a concealed effect found and written out, and
+//! bad input refused with a clear message and nothing written.
+mod common;
+
+use common::magstand;
+
+/// Simulates a shipped scenario into `dir/NAME/recording.csv` with overrides.
+fn simulate(dir: &std::path::Path, name: &str, set: &[&str]) -> std::path::PathBuf {
+    let out = dir.join(name);
+    let mut args = vec![
+        "simulate",
+        "--scenario",
+        "builtin:bench-supply-stair",
+        "--out",
+        out.to_str().unwrap(),
+        "--seed",
+        "5",
+    ];
+    for s in set {
+        args.push("--set");
+        args.push(s);
+    }
+    let r = magstand(&args);
+    assert!(r.ok, "{}", r.stderr);
+    out.join("recording.csv")
+}
+
+#[test]
+fn a_delayed_magnetometer_stream_is_named_and_the_outputs_are_written() {
+    let dir = tempfile::tempdir().unwrap();
+    let rec = simulate(
+        dir.path(),
+        "late",
+        &["logging.mag_delay_s=0.1", "magnetometer.odr_hz=50.0"],
+    );
+    let json = dir.path().join("d.json");
+    let aug = dir.path().join("aug.toml");
+    let report = dir.path().join("report");
+    let r = magstand(&[
+        "diagnose",
+        "--recording",
+        rec.to_str().unwrap(),
+        "--scenario",
+        "builtin:bench-supply-stair",
+        "--json",
+        json.to_str().unwrap(),
+        "--augmented",
+        aug.to_str().unwrap(),
+        "--report",
+        report.to_str().unwrap(),
+    ]);
+    assert!(r.ok, "{}", r.stderr);
+    assert!(r.stdout.contains("verdict: time_offset"), "{}", r.stdout);
+    let d = magstand_diagnose::Diagnosis::load(&json).unwrap();
+    assert_eq!(d.verdict, ["time_offset"]);
+    let delay = &d.effects[0].params[0];
+    assert!((delay.value - 0.1).abs() < 0.015, "{delay:?}");
+    let before: f64 = d.effects[0].holdout_rmse_before_ut.iter().sum();
+    let after: f64 = d.effects[0].holdout_rmse_after_ut.iter().sum();
+    assert!(after < before, "{before} -> {after}");
+    // The augmented scenario is a valid scenario with the delay switched on.
+    let s = magstand_sim::Scenario::load(&aug, &[]).unwrap();
+    assert!((s.params().logging.mag_delay_s - 0.1).abs() < 0.015);
+    let page = std::fs::read_to_string(report.join("index.html")).unwrap();
+    assert!(page.contains("Mismatch diagnosis") && page.contains("time_offset"));
+}
+
+#[test]
+fn a_scenario_with_another_motor_count_is_refused_by_name() {
+    let dir = tempfile::tempdir().unwrap();
+    let rec = simulate(
+        dir.path(),
+        "quad",
+        &["program.steps=4", "program.dwell_s=2.0"],
+    );
+    let hexa = dir.path().join("hexa.toml");
+    std::fs::write(
+        &hexa,
+        "name = \"hexa\"\n[program]\nkind = \"stair\"\nsteps = 3\ndwell_s = 1.0\n[motors]\ncount = 6\n[wiring]\n",
+    )
+    .unwrap();
+    let json = dir.path().join("d.json");
+    let r = magstand(&[
+        "diagnose",
+        "--recording",
+        rec.to_str().unwrap(),
+        "--scenario",
+        hexa.to_str().unwrap(),
+        "--json",
+        json.to_str().unwrap(),
+    ]);
+    assert!(
+        !r.ok
+            && r.stderr.contains("motors.count = 6")
+            && r.stderr.contains("4 motor command columns"),
+        "{}",
+        r.stderr
+    );
+    assert!(!json.exists(), "nothing may be written");
+}
+
+#[test]
+fn too_short_a_recording_and_a_bad_setting_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let rec = simulate(
+        dir.path(),
+        "short",
+        &[
+            "program.steps=1",
+            "program.dwell_s=0.5",
+            "program.off_s=0.5",
+        ],
+    );
+    let r = magstand(&["diagnose", "--recording", rec.to_str().unwrap()]);
+    assert!(
+        !r.ok && r.stderr.contains("held-out blocks"),
+        "{}",
+        r.stderr
+    );
+    let r = magstand(&[
+        "diagnose",
+        "--recording",
+        rec.to_str().unwrap(),
+        "--significance",
+        "2",
+    ]);
+    assert!(!r.ok && r.stderr.contains("significance"), "{}", r.stderr);
+    // The recording itself is never an output.
+    let r = magstand(&[
+        "diagnose",
+        "--recording",
+        rec.to_str().unwrap(),
+        "--json",
+        rec.to_str().unwrap(),
+    ]);
+    assert!(!r.ok, "{}", r.stderr);
+    assert!(std::fs::read_to_string(&rec).unwrap().starts_with("t_s"));
+}
