@@ -1,5 +1,7 @@
 //! Runs the full concealed-effect suite and prints its Markdown report:
-//! `cargo run --release -p magstand-tests --bin concealed-suite -- [SEEDS]` (default 5).
+//! `cargo run --release -p magstand-tests --bin concealed-suite -- [SEEDS [LABEL]]` (default 5
+//! seeds, every case; LABEL keeps the cases whose label contains it; FIRST_SEED and VERBOSE in
+//! the environment start elsewhere and print every candidate).
 use magstand_tests::concealed::{cases, markdown, run_case};
 
 fn main() {
@@ -7,14 +9,31 @@ fn main() {
         .nth(1)
         .map(|s| s.parse().expect("SEEDS: a whole number"))
         .unwrap_or(5);
+    // An optional second argument keeps only the cases whose label contains it.
+    let only = std::env::args().nth(2).unwrap_or_default();
+    let first_seed: u64 = std::env::var("FIRST_SEED")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(1);
     let mut outcomes = Vec::new();
-    for case in cases() {
-        for seed in 1..=seeds {
+    for case in cases().into_iter().filter(|c| c.label.contains(&only)) {
+        for seed in first_seed..first_seed + seeds {
             let o = run_case(&case, seed);
             eprintln!(
                 "{:50} seed {seed}: {:?} ({:.1} s)",
                 case.label, o.verdict, o.diagnose_s
             );
+            if std::env::var("VERBOSE").is_ok() {
+                for r in &o.diagnosis.rounds {
+                    for c in &r.candidates {
+                        eprintln!(
+                            "    {:16} gain {:?} p {:?}",
+                            c.name, c.improvement, c.p_value
+                        );
+                    }
+                    eprintln!("    -> {:?} (threshold {:.1e})", r.accepted, r.threshold);
+                }
+            }
             outcomes.push(o);
         }
     }

@@ -15,12 +15,14 @@ impl Effect for TimeOffset {
          latency), so every change in the field appears a fixed time after its cause."
     }
     fn search(&self, ctx: &Context) -> Vec<Search> {
-        // Up to half a second, in steps finer than one sample.
+        // From one sample interval (shorter delays cannot be told from where in the interval
+        // a logged command changed, which the baseline calibrates) to half a second, in steps
+        // finer than one sample.
         let dt = ctx.rec.mean_interval_s();
         Vec::from([Search {
             name: "mag_delay_s",
             unit: "s",
-            lo: 0.0,
+            lo: dt.min(0.25),
             hi: 0.5,
             log: false,
             points: ((0.5 / dt).ceil() as usize + 1).clamp(11, 51),
