@@ -315,11 +315,12 @@ pub fn markdown(outcomes: &[Outcome]) -> String {
         .filter(|o| o.label.starts_with("control"))
         .collect();
     let alarms = controls.iter().filter(|o| !o.verdict.is_empty()).count();
+    let all = cases();
     let wrong_names: usize = outcomes
         .iter()
         .map(|o| {
-            let want: Vec<&str> = cases()
-                .into_iter()
+            let want: Vec<&str> = all
+                .iter()
                 .find(|c| c.label == o.label)
                 .map(|c| c.expect.to_vec())
                 .unwrap_or_default();

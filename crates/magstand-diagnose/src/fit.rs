@@ -118,18 +118,16 @@ pub(crate) fn fit(
             coef_sd[j][a] = var[j].max(0.0).sqrt();
         }
     }
-    let mut pred = Vec::with_capacity(n);
+    let mut pred = design.predict(&coef);
     let mut chi2_fit = 0.0;
-    for r in 0..n {
-        let mut v = fixed.map_or(Vec3::zeros(), |f| f[r]);
-        for (c, col) in coef.iter().zip(&design.columns) {
-            v += Vec3::from(*c) * col[r];
+    for (r, v) in pred.iter_mut().enumerate() {
+        if let Some(f) = fixed {
+            *v += f[r];
         }
         if !holdout[r] {
-            let e = y[r] - v;
+            let e = y[r] - *v;
             chi2_fit += (0..3).map(|a| weights.0[r][a] * e[a] * e[a]).sum::<f64>();
         }
-        pred.push(v);
     }
     Ok(Fitted {
         coef,

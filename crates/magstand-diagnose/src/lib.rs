@@ -65,7 +65,7 @@ mod stats;
 
 pub use config::{DiagnoseConfig, ValidConfig};
 pub use diagnosis::{Diagnosis, UNEXPLAINED};
-pub use effects::{Context, Effect, Param, catalog};
+pub use effects::{Context, Effect, EffectFit, Param, catalog};
 pub use error::DiagnoseError;
 pub use locate::Location;
 pub use optimize::Search;

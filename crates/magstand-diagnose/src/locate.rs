@@ -9,7 +9,7 @@
 use magstand_core::{Recording, Vec3};
 use serde::{Deserialize, Serialize};
 
-use crate::stats::chi2_quantile;
+use crate::stats::{chi2_quantile, t_sf};
 
 /// Where a mismatch, or an effect, shows.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -252,7 +252,7 @@ fn follows_motors(win: &[Window], axes: &[usize], significance: f64) -> String {
             // |r| as a one-sided t over windows: t = |r| sqrt((n - 2) / (1 - r^2)).
             let n = x.len() as f64;
             let t = r.abs() * ((n - 2.0) / (1.0 - r * r).max(1e-12)).sqrt();
-            let p = one_sided_t_from(t, n - 2.0);
+            let p = t_sf(t, n - 2.0);
             p < significance / (m * axes.len()) as f64 && r.abs() > 0.3
         });
         if significant {
@@ -272,11 +272,6 @@ fn follows_motors(win: &[Window], axes: &[usize], significance: f64) -> String {
                 .join(", ")
         ),
     }
-}
-
-fn one_sided_t_from(t: f64, dof: f64) -> f64 {
-    use statrs::distribution::{ContinuousCDF, StudentsT};
-    StudentsT::new(0.0, 1.0, dof.max(1.0)).map_or(1.0, |d| d.sf(t))
 }
 
 fn spread(x: &[f64]) -> f64 {

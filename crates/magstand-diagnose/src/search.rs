@@ -9,7 +9,7 @@ use crate::diagnosis::{
     Baseline, CandidateResult, Diagnosis, EffectReport, FORMAT, Round, Series, Settings,
     SimulationAgreement, Stage, UNEXPLAINED, VERSION,
 };
-use crate::effects::{Context, Effect, Param, catalog};
+use crate::effects::{Context, Effect, EffectFit, Param, catalog};
 use crate::fit::{Design, Fitted, VarianceModel, Weights, fit};
 use crate::locate::{Rows, Signal, locate};
 use crate::optimize::minimize;
@@ -171,9 +171,7 @@ fn noise_referenced(before: &[Vec3], after: &[Vec3], w: &Weights, split: &Split)
     if !(var > 0.0) {
         return None;
     }
-    statrs::distribution::Normal::new(0.0, 1.0)
-        .ok()
-        .map(|d| statrs::distribution::ContinuousCDF::sf(&d, s / var.sqrt()))
+    Some(crate::stats::normal_sf(s / var.sqrt()))
 }
 
 /// Standardized residuals (divided by the noise sd).
@@ -200,6 +198,22 @@ struct Candidate {
     fitted: Option<(Vec<f64>, Vec<Option<f64>>, Fitted)>,
 }
 
+impl Candidate {
+    /// A candidate that was not tried or could not be fitted, and why.
+    fn not_fitted(effect: &dyn Effect, note: &str) -> Candidate {
+        Candidate {
+            result: CandidateResult {
+                name: effect.name().into(),
+                holdout_rmse_ut: None,
+                improvement: None,
+                p_value: None,
+                note: Some(note.into()),
+            },
+            fitted: None,
+        }
+    }
+}
+
 fn try_candidate(
     ctx: &Context,
     terms: &[Term],
@@ -207,16 +221,6 @@ fn try_candidate(
     weights: &Weights,
     before: &[Vec3],
 ) -> Candidate {
-    let fail = |note: String| Candidate {
-        result: CandidateResult {
-            name: effect.name().into(),
-            holdout_rmse_ut: None,
-            improvement: None,
-            p_value: None,
-            note: Some(note),
-        },
-        fitted: None,
-    };
     let y = &ctx.rec.mag_ut;
     let base = as_refs(terms);
     let with = |theta: &[f64]| -> Option<Fitted> {
@@ -226,12 +230,13 @@ fn try_candidate(
         fit(&b.design, y, Some(&b.fixed), weights, &ctx.split.holdout).ok()
     };
     let Some(opt) = minimize(&effect.search(ctx), |theta| with(theta).map(|f| f.chi2_fit)) else {
-        return fail(
-            "cannot be fitted on this recording (its regressors are degenerate here)".into(),
+        return Candidate::not_fitted(
+            effect,
+            "cannot be fitted on this recording (its regressors are degenerate here)",
         );
     };
     let Some(fitted) = with(&opt.theta) else {
-        return fail("cannot be fitted at its best parameters".into());
+        return Candidate::not_fitted(effect, "cannot be fitted at its best parameters");
     };
     let after = fitted.residuals(y);
     let blocks = block_improvements(before, &after, weights, ctx.split);
@@ -403,14 +408,13 @@ pub fn diagnose(
     ctx.command_lead = calibrate_timing(&ctx, &[]);
     let base_lead = ctx.command_lead;
     let rows = Rows::new(rec, &split.block);
-    let judged = split.holdout.clone();
     let y = &rec.mag_ut;
     let all_rows = vec![true; rec.len()];
 
     // Baseline.
     let (base_built, base_fit, base_w) = fit_model(&ctx, &[], None)?;
     let base_resid = base_fit.residuals(y);
-    let base_rmse = holdout_rmse(&base_resid, &judged);
+    let base_rmse = holdout_rmse(&base_resid, &split.holdout);
     let base_z = standardized(&base_resid, &base_w);
     let base_white = whiteness(&base_z, &split);
     let white_threshold = cfg.significance / 3.0;
@@ -437,16 +441,7 @@ pub fn diagnose(
                 if e.applies(&ctx) {
                     try_candidate(&ctx, &terms, *e, w, &before)
                 } else {
-                    Candidate {
-                        result: CandidateResult {
-                            name: e.name().into(),
-                            holdout_rmse_ut: None,
-                            improvement: None,
-                            p_value: None,
-                            note: Some("does not apply to this recording".into()),
-                        },
-                        fitted: None,
-                    }
+                    Candidate::not_fitted(*e, "does not apply to this recording")
                 }
             })
             .collect();
@@ -491,8 +486,8 @@ pub fn diagnose(
             params: Vec::new(),
             explanation: open[i].explanation().into(),
             located: locate(&rows, &change, &all_rows, Signal::Change, cfg.significance),
-            holdout_rmse_before_ut: holdout_rmse(&before, &judged),
-            holdout_rmse_after_ut: holdout_rmse(&after, &judged),
+            holdout_rmse_before_ut: holdout_rmse(&before, &split.holdout),
+            holdout_rmse_after_ut: holdout_rmse(&after, &split.holdout),
             p_value: tried[i].result.p_value.unwrap_or(1.0),
         });
         stages.push((format!("+ {}", open[i].name()), after));
@@ -509,18 +504,23 @@ pub fn diagnose(
         rounds.push(round);
     }
 
-    // Final joint model: parameters of every accepted term.
+    // Final joint model; the accepted effects switched on with its values in the augmented
+    // scenario, which also gives their parameters.
     let (final_built, final_fit, final_w) = fit_model(&ctx, &terms, Some(&current.1))?;
+    let mut augmented = scenario.clone();
     for (t, (report, cols)) in terms
         .iter()
         .zip(reports.iter_mut().zip(&final_built.term_columns))
     {
-        report.params = t.effect.params(
+        report.params = t.effect.switch_on(
             &ctx,
-            &t.theta,
-            &t.theta_sd,
-            &final_fit.coef[cols.clone()],
-            &final_fit.coef_sd[cols.clone()],
+            &mut augmented,
+            &EffectFit {
+                theta: &t.theta,
+                theta_sd: &t.theta_sd,
+                coef: &final_fit.coef[cols.clone()],
+                coef_sd: &final_fit.coef_sd[cols.clone()],
+            },
         );
     }
     let final_resid = final_fit.residuals(y);
@@ -528,7 +528,7 @@ pub fn diagnose(
     let final_white = whiteness(&final_z, &split);
     let mut verdict: Vec<String> = terms.iter().map(|t| t.effect.name().to_string()).collect();
     if final_white.iter().any(|&p| p < white_threshold) {
-        let rmse = holdout_rmse(&final_resid, &judged);
+        let rmse = holdout_rmse(&final_resid, &split.holdout);
         reports.push(EffectReport {
             name: UNEXPLAINED.into(),
             params: Vec::new(),
@@ -549,17 +549,7 @@ pub fn diagnose(
         verdict.push(UNEXPLAINED.into());
     }
 
-    // Augmented scenario and the simulation comparison.
-    let mut augmented = scenario.clone();
-    for (t, cols) in terms.iter().zip(&final_built.term_columns) {
-        t.effect.apply(&ctx, &mut augmented, &t.theta);
-        t.effect.switch_on(
-            &ctx,
-            &mut augmented,
-            &t.theta,
-            &final_fit.coef[cols.clone()],
-        );
-    }
+    // The simulation of the augmented scenario against the recording.
     let augmented = augmented.check(&format!("augmented {}", nominal.origin()), None)?;
     let sim_after = {
         let tr = replay(
@@ -576,7 +566,7 @@ pub fn diagnose(
                 message: "the augmented simulation cannot be calibrated".into(),
             }
         })?;
-        holdout_rmse(&f.residuals(y), &judged)
+        holdout_rmse(&f.residuals(y), &split.holdout)
     };
 
     let baseline = Baseline {
@@ -619,7 +609,7 @@ pub fn diagnose(
             holdout_rmse_after_ut: sim_after,
         },
         rounds,
-        series: series(rec, &judged, &stages),
+        series: series(rec, &split.holdout, &stages),
         settings: Settings {
             significance: cfg.significance,
             holdout_every: cfg.holdout_every,
@@ -631,8 +621,8 @@ pub fn diagnose(
 }
 
 /// Held-out residuals of every stage at no more than [`SERIES_POINTS`] rows.
-fn series(rec: &Recording, judged: &[bool], stages: &[(String, Vec<Vec3>)]) -> Series {
-    let held: Vec<usize> = (0..rec.len()).filter(|&r| judged[r]).collect();
+fn series(rec: &Recording, holdout: &[bool], stages: &[(String, Vec<Vec3>)]) -> Series {
+    let held: Vec<usize> = (0..rec.len()).filter(|&r| holdout[r]).collect();
     let stride = held.len().div_ceil(SERIES_POINTS).max(1);
     let rows: Vec<usize> = held.into_iter().step_by(stride).collect();
     Series {

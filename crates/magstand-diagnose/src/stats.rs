@@ -1,6 +1,6 @@
 //! The tests behind every decision: a paired test of held-out improvement over blocks, the
 //! Ljung-Box test of white residuals, and chi-square tests of windowed residual means.
-use statrs::distribution::{ChiSquared, ContinuousCDF, StudentsT};
+use statrs::distribution::{ChiSquared, ContinuousCDF, Normal, StudentsT};
 
 /// One-sided p-value that the mean of `x` is above zero (Student t over independent units).
 /// `None` with fewer than three units.
@@ -14,9 +14,17 @@ pub(crate) fn one_sided_t(x: &[f64]) -> Option<f64> {
     if var <= 0.0 {
         return Some(if mean > 0.0 { 0.0 } else { 1.0 });
     }
-    let t = mean / (var / n as f64).sqrt();
-    let dist = StudentsT::new(0.0, 1.0, (n - 1) as f64).ok()?;
-    Some(dist.sf(t))
+    Some(t_sf(mean / (var / n as f64).sqrt(), (n - 1) as f64))
+}
+
+/// Upper tail of Student's t with `dof` degrees of freedom.
+pub(crate) fn t_sf(t: f64, dof: f64) -> f64 {
+    StudentsT::new(0.0, 1.0, dof.max(1.0)).map_or(1.0, |d| d.sf(t))
+}
+
+/// Upper tail of the standard normal.
+pub(crate) fn normal_sf(z: f64) -> f64 {
+    Normal::new(0.0, 1.0).map_or(1.0, |d| d.sf(z))
 }
 
 /// One-sided p-value that the values of `x` lean above zero: the Wilcoxon signed-rank test
@@ -51,9 +59,7 @@ pub(crate) fn signed_rank(x: &[f64]) -> Option<f64> {
     let mean = nf * (nf + 1.0) / 4.0;
     let var = nf * (nf + 1.0) * (2.0 * nf + 1.0) / 24.0 - tie_term / 48.0;
     let z = (w_plus - mean - 0.5) / var.sqrt();
-    statrs::distribution::Normal::new(0.0, 1.0)
-        .ok()
-        .map(|d| d.sf(z))
+    Some(normal_sf(z))
 }
 
 /// Upper-tail p-value of a chi-square statistic with `dof` degrees of freedom.

@@ -173,7 +173,7 @@ impl Trace {
     /// interpolation, the first row's state before the start): what a magnetometer stream
     /// logged `delay_s` late sees.
     pub fn delay(&mut self, delay_s: f64) {
-        let t = self.t_s.clone();
+        let t = &self.t_s;
         let at: Vec<(usize, f64)> = t
             .iter()
             .map(|&ti| {
@@ -188,33 +188,34 @@ impl Trace {
                 }
             })
             .collect();
-        let shift = |col: &mut Vec<f64>| {
-            let old = col.clone();
-            for (v, &(k, f)) in col.iter_mut().zip(&at) {
-                *v = if f == 0.0 {
-                    old[k]
-                } else {
-                    old[k] + f * (old[k + 1] - old[k])
-                };
-            }
-        };
         for m in 0..self.speed.len() {
-            shift(&mut self.speed[m]);
-            shift(&mut self.driven[m]);
-            shift(&mut self.current_a[m]);
+            shift(&mut self.speed[m], &at);
+            shift(&mut self.driven[m], &at);
+            shift(&mut self.current_a[m], &at);
         }
-        shift(&mut self.total_a);
-        shift(&mut self.voltage_v);
-        shift(&mut self.temp_c);
-        shift(&mut self.play_a);
-        let old = self.extra_ut.clone();
-        for (v, &(k, f)) in self.extra_ut.iter_mut().zip(&at) {
-            *v = if f == 0.0 {
-                old[k]
-            } else {
-                old[k] + (old[k + 1] - old[k]) * f
-            };
-        }
+        shift(&mut self.total_a, &at);
+        shift(&mut self.voltage_v, &at);
+        shift(&mut self.temp_c, &at);
+        shift(&mut self.play_a, &at);
+        shift(&mut self.extra_ut, &at);
+    }
+}
+
+/// Replaces each value by the linear interpolation `at` gives: (row before, fraction to next).
+fn shift<T>(col: &mut [T], at: &[(usize, f64)])
+where
+    T: Copy
+        + std::ops::Add<Output = T>
+        + std::ops::Sub<Output = T>
+        + std::ops::Mul<f64, Output = T>,
+{
+    let old = col.to_vec();
+    for (v, &(k, f)) in col.iter_mut().zip(at) {
+        *v = if f == 0.0 {
+            old[k]
+        } else {
+            old[k] + (old[k + 1] - old[k]) * f
+        };
     }
 }
 

@@ -2,7 +2,7 @@ use magstand_sim::Scenario;
 use magstand_sim::battery::SupplyParams;
 use magstand_sim::replay::replay;
 
-use super::{Context, Effect, Param};
+use super::{Context, Effect, EffectFit, Param};
 use crate::optimize::{Search, minimize};
 
 /// The supply is a battery whose voltage falls with the charge drawn and under load.
@@ -96,29 +96,16 @@ impl Effect for BatterySag {
     fn uses_recorded_voltage(&self, ctx: &Context) -> bool {
         ctx.rec.bat_v.is_some()
     }
-    fn switch_on(&self, ctx: &Context, s: &mut Scenario, theta: &[f64], _coef: &[[f64; 3]]) {
-        if ctx.rec.bat_v.is_none() {
-            set_battery(ctx, s, theta);
-        } else if let Some((theta, _)) = self.fit_to_recorded_voltage(ctx, &s.clone()) {
-            set_battery(ctx, s, &theta);
-        }
-    }
-    fn params(
-        &self,
-        ctx: &Context,
-        theta: &[f64],
-        sd: &[Option<f64>],
-        _c: &[[f64; 3]],
-        _csd: &[[f64; 3]],
-    ) -> Vec<Param> {
-        let (theta, sd) = if ctx.rec.bat_v.is_some() {
-            match self.fit_to_recorded_voltage(ctx, ctx.nominal) {
-                Some(f) => f,
+    fn switch_on(&self, ctx: &Context, s: &mut Scenario, f: &EffectFit) -> Vec<Param> {
+        let (theta, sd) = if ctx.rec.bat_v.is_none() {
+            (f.theta.to_vec(), f.theta_sd.to_vec())
+        } else {
+            match self.fit_to_recorded_voltage(ctx, s) {
+                Some(fit) => fit,
                 None => return Vec::new(),
             }
-        } else {
-            (theta.to_vec(), sd.to_vec())
         };
+        set_battery(ctx, s, &theta);
         vec![
             Param::new("internal_resistance_ohm", theta[0], sd[0], "ohm"),
             Param::new("capacity_ah", theta[1], sd[1], "Ah"),

@@ -1,6 +1,6 @@
 use magstand_sim::Scenario;
 
-use super::{Context, Effect, Param};
+use super::{Context, Effect};
 use crate::optimize::Search;
 
 /// The ESCs start the motors at a command other than the nominal one.
@@ -26,18 +26,5 @@ impl Effect for DeadZone {
     }
     fn apply(&self, _ctx: &Context, s: &mut Scenario, theta: &[f64]) {
         s.motors.dead_zone = theta[0];
-    }
-    fn switch_on(&self, ctx: &Context, s: &mut Scenario, theta: &[f64], _coef: &[[f64; 3]]) {
-        self.apply(ctx, s, theta);
-    }
-    fn params(
-        &self,
-        _ctx: &Context,
-        theta: &[f64],
-        sd: &[Option<f64>],
-        _c: &[[f64; 3]],
-        _csd: &[[f64; 3]],
-    ) -> Vec<Param> {
-        vec![Param::new("dead_zone", theta[0], sd[0], "command (0..1)")]
     }
 }

@@ -1,7 +1,7 @@
 use magstand_sim::Scenario;
 use magstand_sim::replay::Trace;
 
-use super::{Context, Effect, Param};
+use super::{Context, Effect, EffectFit, Param};
 use crate::optimize::Search;
 
 /// Magnetized steel near the sensor: the field differs going up and coming down.
@@ -39,21 +39,17 @@ impl Effect for Hysteresis {
     fn regressors(&self, _ctx: &Context, trace: &Trace, _theta: &[f64]) -> Vec<(String, Vec<f64>)> {
         vec![("play_a".into(), trace.play_a.clone())]
     }
-    fn switch_on(&self, _ctx: &Context, s: &mut Scenario, theta: &[f64], coef: &[[f64; 3]]) {
+    fn switch_on(&self, _ctx: &Context, s: &mut Scenario, f: &EffectFit) -> Vec<Param> {
         s.hysteresis.enabled = true;
-        s.hysteresis.play_a = theta[0];
-        s.hysteresis.gain_ut_per_a = coef[0];
-    }
-    fn params(
-        &self,
-        _ctx: &Context,
-        theta: &[f64],
-        sd: &[Option<f64>],
-        coef: &[[f64; 3]],
-        coef_sd: &[[f64; 3]],
-    ) -> Vec<Param> {
-        let mut p = vec![Param::new("play_a", theta[0], sd[0], "A")];
-        p.extend(Param::axes("gain_ut_per_a", coef[0], coef_sd[0], "µT/A"));
+        s.hysteresis.play_a = f.theta[0];
+        s.hysteresis.gain_ut_per_a = f.coef[0];
+        let mut p = vec![Param::new("play_a", f.theta[0], f.theta_sd[0], "A")];
+        p.extend(Param::axes(
+            "gain_ut_per_a",
+            f.coef[0],
+            f.coef_sd[0],
+            "µT/A",
+        ));
         p
     }
 }

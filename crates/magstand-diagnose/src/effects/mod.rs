@@ -78,6 +78,18 @@ impl Param {
     }
 }
 
+/// An effect's fitted values in the final joint model.
+pub struct EffectFit<'a> {
+    /// Nonlinear parameters.
+    pub theta: &'a [f64],
+    /// Their standard uncertainties.
+    pub theta_sd: &'a [Option<f64>],
+    /// Coefficients of the effect's regressors, per column, per axis.
+    pub coef: &'a [[f64; 3]],
+    /// Their standard uncertainties.
+    pub coef_sd: &'a [[f64; 3]],
+}
+
 /// A candidate piece of physics the nominal simulation may have left out.
 pub trait Effect: Sync + Send {
     /// Catalog name (`battery_sag`, ...).
@@ -112,20 +124,19 @@ pub trait Effect: Sync + Send {
         Vec::new()
     }
 
-    /// Switches the simulator's module on with the fitted nonlinear parameters and regressor
-    /// coefficients (per column, per axis).
-    fn switch_on(&self, ctx: &Context, scenario: &mut Scenario, theta: &[f64], coef: &[[f64; 3]]);
-
-    /// The fitted parameters for people: nonlinear ones with their uncertainty, and the
-    /// coefficients in physical units.
-    fn params(
-        &self,
-        ctx: &Context,
-        theta: &[f64],
-        theta_sd: &[Option<f64>],
-        coef: &[[f64; 3]],
-        coef_sd: &[[f64; 3]],
-    ) -> Vec<Param>;
+    /// Switches the simulator's module on in `scenario` with the fitted values, and returns
+    /// them for people: nonlinear parameters with their uncertainty, coefficients in physical
+    /// units. Any fit the effect needs for this (a battery or a heating model to a logged
+    /// column) happens here once. By default: `apply` the nonlinear parameters and report them
+    /// as searched, which is all an effect made only of scenario settings needs.
+    fn switch_on(&self, ctx: &Context, scenario: &mut Scenario, fitted: &EffectFit) -> Vec<Param> {
+        self.apply(ctx, scenario, &fitted.theta);
+        self.search(ctx)
+            .iter()
+            .zip(fitted.theta.iter().zip(fitted.theta_sd))
+            .map(|(s, (v, sd))| Param::new(s.name, *v, *sd, s.unit))
+            .collect()
+    }
 }
 
 /// Every effect of the catalog, in a fixed order.

@@ -1,7 +1,7 @@
 use magstand_sim::Scenario;
 use magstand_sim::replay::Trace;
 
-use super::{Context, Effect, Param};
+use super::{Context, Effect, EffectFit, Param};
 use crate::optimize::Search;
 
 /// Motors affect the sensor unequally.
@@ -72,34 +72,25 @@ impl Effect for MotorAsymmetry {
             })
             .collect()
     }
-    fn switch_on(&self, ctx: &Context, s: &mut Scenario, _theta: &[f64], coef: &[[f64; 3]]) {
-        let extra = gains(coef, ctx.nominal.motors.count);
-        if s.wiring.extra_motor_ut_per_a.len() == extra.len() {
-            for (e, g) in s.wiring.extra_motor_ut_per_a.iter_mut().zip(extra) {
+    fn switch_on(&self, ctx: &Context, s: &mut Scenario, f: &EffectFit) -> Vec<Param> {
+        let n = ctx.nominal.motors.count;
+        let g = gains(f.coef, n);
+        if s.wiring.extra_motor_ut_per_a.len() == g.len() {
+            for (e, g) in s.wiring.extra_motor_ut_per_a.iter_mut().zip(&g) {
                 for a in 0..3 {
                     e[a] += g[a];
                 }
             }
         } else {
-            s.wiring.extra_motor_ut_per_a = extra;
+            s.wiring.extra_motor_ut_per_a = g.clone();
         }
-    }
-    fn params(
-        &self,
-        ctx: &Context,
-        _theta: &[f64],
-        _sd: &[Option<f64>],
-        coef: &[[f64; 3]],
-        coef_sd: &[[f64; 3]],
-    ) -> Vec<Param> {
-        let n = ctx.nominal.motors.count;
-        let g = gains(coef, n);
         // Uncertainty of each gain ignoring the coefficients' covariance (approximate).
-        let sum_var: [f64; 3] = std::array::from_fn(|a| coef_sd.iter().map(|s| s[a] * s[a]).sum());
+        let sum_var: [f64; 3] =
+            std::array::from_fn(|a| f.coef_sd.iter().map(|s| s[a] * s[a]).sum());
         g.iter()
             .enumerate()
             .flat_map(|(m, g)| {
-                let sd = std::array::from_fn(|a| match coef_sd.get(m) {
+                let sd = std::array::from_fn(|a| match f.coef_sd.get(m) {
                     Some(s) => s[a],
                     None => sum_var[a].sqrt() / n as f64,
                 });

@@ -1,7 +1,7 @@
 use magstand_sim::Scenario;
 use magstand_sim::replay::Trace;
 
-use super::{Context, Effect, Param, first_order_lag};
+use super::{Context, Effect, EffectFit, Param, first_order_lag};
 use crate::optimize::{Search, minimize};
 
 /// The board heats with the power drawn and the sensor offset moves with temperature.
@@ -80,10 +80,10 @@ impl Effect for ThermalDrift {
             )],
         }
     }
-    fn switch_on(&self, ctx: &Context, s: &mut Scenario, theta: &[f64], coef: &[[f64; 3]]) {
+    fn switch_on(&self, ctx: &Context, s: &mut Scenario, f: &EffectFit) -> Vec<Param> {
         s.thermal.enabled = true;
         match self.fit_heating(ctx, ctx.nominal_trace) {
-            Some((tau, _, rise)) if rise > 0.0 => {
+            Some((tau, tau_sd, rise)) if rise > 0.0 => {
                 s.thermal.tau_s = tau;
                 s.thermal.rise_c_per_w = rise.min(10.0);
                 s.thermal.ambient_c = ctx
@@ -91,34 +91,24 @@ impl Effect for ThermalDrift {
                     .temp_c
                     .as_deref()
                     .map_or(s.thermal.ambient_c, |t| t[0]);
-                s.thermal.offset_ut_per_c = coef[0];
-            }
-            _ => {
-                // Only the product of rise and offset is seen: keep the nominal rise.
-                s.thermal.tau_s = theta.first().copied().unwrap_or(s.thermal.tau_s);
-                let rise = s.thermal.rise_c_per_w.max(1e-6);
-                s.thermal.offset_ut_per_c = coef[0].map(|c| c / rise);
-            }
-        }
-    }
-    fn params(
-        &self,
-        ctx: &Context,
-        theta: &[f64],
-        sd: &[Option<f64>],
-        coef: &[[f64; 3]],
-        coef_sd: &[[f64; 3]],
-    ) -> Vec<Param> {
-        match self.fit_heating(ctx, ctx.nominal_trace) {
-            Some((tau, tau_sd, rise)) => {
-                let mut p = Param::axes("offset_ut_per_c", coef[0], coef_sd[0], "µT/°C");
+                s.thermal.offset_ut_per_c = f.coef[0];
+                let mut p = Param::axes("offset_ut_per_c", f.coef[0], f.coef_sd[0], "µT/°C");
                 p.push(Param::new("tau_s", tau, tau_sd, "s"));
                 p.push(Param::new("rise_c_per_w", rise, None, "°C/W"));
                 p
             }
-            None => {
-                let mut p = vec![Param::new("tau_s", theta[0], sd[0], "s")];
-                p.extend(Param::axes("offset_ut_per_w", coef[0], coef_sd[0], "µT/W"));
+            _ => {
+                // Only the product of rise and offset is seen: keep the nominal rise.
+                s.thermal.tau_s = f.theta.first().copied().unwrap_or(s.thermal.tau_s);
+                let rise = s.thermal.rise_c_per_w.max(1e-6);
+                s.thermal.offset_ut_per_c = f.coef[0].map(|c| c / rise);
+                let mut p = vec![Param::new("tau_s", f.theta[0], f.theta_sd[0], "s")];
+                p.extend(Param::axes(
+                    "offset_ut_per_w",
+                    f.coef[0],
+                    f.coef_sd[0],
+                    "µT/W",
+                ));
                 p
             }
         }

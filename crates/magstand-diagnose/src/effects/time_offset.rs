@@ -1,6 +1,6 @@
 use magstand_sim::Scenario;
 
-use super::{Context, Effect, Param};
+use super::{Context, Effect};
 use crate::optimize::Search;
 
 /// The magnetometer stream is logged late against the command stream.
@@ -30,18 +30,5 @@ impl Effect for TimeOffset {
     }
     fn apply(&self, _ctx: &Context, s: &mut Scenario, theta: &[f64]) {
         s.logging.mag_delay_s = theta[0];
-    }
-    fn switch_on(&self, ctx: &Context, s: &mut Scenario, theta: &[f64], _coef: &[[f64; 3]]) {
-        self.apply(ctx, s, theta);
-    }
-    fn params(
-        &self,
-        _ctx: &Context,
-        theta: &[f64],
-        sd: &[Option<f64>],
-        _c: &[[f64; 3]],
-        _csd: &[[f64; 3]],
-    ) -> Vec<Param> {
-        vec![Param::new("mag_delay_s", theta[0], sd[0], "s")]
     }
 }
