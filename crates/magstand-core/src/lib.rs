@@ -34,5 +34,8 @@ pub use recording::{GroundTruth, ImuColumns, Recording};
 /// A 3-vector of f64, used for every per-axis quantity (field, acceleration, rate).
 pub type Vec3 = nalgebra::Vector3<f64>;
 
+/// An attitude: the rotation from the body frame to north-east-down.
+pub type Quat = nalgebra::UnitQuaternion<f64>;
+
 /// Axis names in the order magstand always uses them (body frame: forward, right, down).
 pub const AXES: [&str; 3] = ["x", "y", "z"];

@@ -1,4 +1,4 @@
-use crate::{CoreError, Vec3};
+use crate::{CoreError, Quat, Vec3};
 
 /// Columns that only a simulation can know: the field without motors, the motor-caused
 /// disturbance and the noise standard deviation at each sample.
@@ -45,6 +45,9 @@ pub struct Recording {
     pub temp_c: Option<Vec<f64>>,
     /// Accelerometer and gyroscope, when recorded.
     pub imu: Option<ImuColumns>,
+    /// `att_q{w,x,y,z}`: attitude, the rotation from the body frame to north-east-down (PX4's
+    /// `vehicle_attitude.q`), when recorded. Flight logs need it to take the Earth field out.
+    pub attitude: Option<Vec<Quat>>,
     /// Ground truth, present in simulated recordings.
     pub truth: Option<GroundTruth>,
     /// Any other columns, kept verbatim (name, cells) so that tools pass them through.
@@ -108,6 +111,10 @@ impl Recording {
             bat_v: self.bat_v.as_ref().map(pick),
             bat_a: self.bat_a.as_ref().map(pick),
             temp_c: self.temp_c.as_ref().map(pick),
+            attitude: self
+                .attitude
+                .as_ref()
+                .map(|q| rows.iter().map(|&r| q[r]).collect()),
             imu: self.imu.as_ref().map(|i| ImuColumns {
                 acc_mps2: pick3(&i.acc_mps2),
                 gyr_rps: pick3(&i.gyr_rps),
@@ -163,6 +170,11 @@ impl Recording {
             if i.gyr_rps.len() != n {
                 return Err(len_err("gyr_*_rps", i.gyr_rps.len()));
             }
+        }
+        if let Some(q) = &self.attitude
+            && q.len() != n
+        {
+            return Err(len_err("att_q*", q.len()));
         }
         if let Some(g) = &self.truth {
             for (name, c) in [

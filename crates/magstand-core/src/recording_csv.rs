@@ -11,6 +11,7 @@
 //! | `bat_v`, `bat_a` | V, A | no |
 //! | `temp_c` | °C | no |
 //! | `acc_{x,y,z}_mps2`, `gyr_{x,y,z}_rps` | m/s², rad/s (each group all three or none) | no |
+//! | `att_qw`, `att_qx`, `att_qy`, `att_qz` | unit quaternion, body to north-east-down (all four or none) | no |
 //! | `true_field_{x,y,z}_ut`, `true_dist_{x,y,z}_ut`, `true_sd_{x,y,z}_ut` | µT (simulations; all nine or none) | no |
 //!
 //! Any other column is carried through verbatim. Numbers are written with fixed precision so
@@ -21,7 +22,7 @@ use std::path::{Path, PathBuf};
 
 use crate::atomic_file;
 use crate::recording::{GroundTruth, ImuColumns, Recording};
-use crate::{AXES, CoreError, Vec3};
+use crate::{AXES, CoreError, Quat, Vec3};
 
 /// Reads a recording from a CSV file.
 pub fn read(path: impl AsRef<Path>) -> Result<Recording, CoreError> {
@@ -139,6 +140,21 @@ fn read_from(reader: impl Read, path: &Path) -> Result<Recording, CoreError> {
     let temp_c = h.find("temp_c");
     let acc = h.triple("acc_", "_mps2")?;
     let gyr = h.triple("gyr_", "_rps")?;
+    let att = {
+        let names = ["att_qw", "att_qx", "att_qy", "att_qz"];
+        if names.iter().any(|n| h.index.contains_key(*n)) {
+            let mut c = [0; 4];
+            for (k, n) in names.iter().enumerate() {
+                c[k] = h.require(
+                    n,
+                    "an attitude comes as all four of att_qw, att_qx, att_qy, att_qz",
+                )?;
+            }
+            Some(c)
+        } else {
+            None
+        }
+    };
     let tf = h.triple("true_field_", "_ut")?;
     let td = h.triple("true_dist_", "_ut")?;
     let ts = h.triple("true_sd_", "_ut")?;
@@ -176,6 +192,7 @@ fn read_from(reader: impl Read, path: &Path) -> Result<Recording, CoreError> {
         bat_a: bat_a.map(|_| Vec::new()),
         temp_c: temp_c.map(|_| Vec::new()),
         imu: (acc.is_some() || gyr.is_some()).then(ImuColumns::default),
+        attitude: att.map(|_| Vec::new()),
         truth: truth.map(|_| GroundTruth::default()),
         extra: extra_cols
             .iter()
@@ -242,6 +259,21 @@ fn read_from(reader: impl Read, path: &Path) -> Result<Recording, CoreError> {
                 None => Vec3::zeros(),
             });
         }
+        if let (Some(c), Some(q)) = (att, rec.attitude.as_mut()) {
+            let v = nalgebra::Vector4::new(num(c[1])?, num(c[2])?, num(c[3])?, num(c[0])?);
+            // Logged quaternions are normalized to float precision; anything far from unit
+            // length is not an attitude.
+            if (v.norm() - 1.0).abs() > 1e-3 {
+                return Err(CoreError::BadCell {
+                    path: path.to_path_buf(),
+                    row,
+                    column: "att_qw".into(),
+                    found: format!("a quaternion of norm {:.6}", v.norm()),
+                    expected: "a unit quaternion (norm 1)".into(),
+                });
+            }
+            q.push(Quat::from_quaternion(nalgebra::Quaternion::from(v)));
+        }
         if let (Some([f, d, s]), Some(g)) = (truth, rec.truth.as_mut()) {
             g.field_ut.push(vec3(f)?);
             g.dist_ut.push(vec3(d)?);
@@ -284,6 +316,9 @@ pub fn header(rec: &Recording) -> Vec<String> {
         h.extend(AXES.map(|a| format!("acc_{a}_mps2")));
         h.extend(AXES.map(|a| format!("gyr_{a}_rps")));
     }
+    if rec.attitude.is_some() {
+        h.extend(["att_qw", "att_qx", "att_qy", "att_qz"].map(String::from));
+    }
     if rec.truth.is_some() {
         for group in ["true_field", "true_dist", "true_sd"] {
             h.extend(AXES.map(|a| format!("{group}_{a}_ut")));
@@ -315,6 +350,12 @@ pub fn write_to(rec: &Recording, out: impl Write, origin: &Path) -> Result<(), C
         if let Some(i) = &rec.imu {
             push3(&mut cells, &i.acc_mps2[r], 5);
             push3(&mut cells, &i.gyr_rps[r], 6);
+        }
+        if let Some(q) = &rec.attitude {
+            let q = q[r].quaternion();
+            for c in [q.w, q.i, q.j, q.k] {
+                cells.push(format!("{:.7}", c + 0.0));
+            }
         }
         if let Some(g) = &rec.truth {
             push3(&mut cells, &g.field_ut[r], 4);
@@ -378,6 +419,28 @@ mod tests {
         write_to(&r, &mut buf, Path::new("mem")).unwrap();
         let back = read_str(std::str::from_utf8(&buf).unwrap(), "mem").unwrap();
         assert_eq!(r, back);
+    }
+
+    #[test]
+    fn attitude_round_trips_and_must_be_unit_and_complete() {
+        let text = "t_s,thr,mag_x_ut,mag_y_ut,mag_z_ut,att_qw,att_qx,att_qy,att_qz\n\
+                    0,0,1,2,3,1,0,0,0\n\
+                    1,0,1,2,3,0.7071068,0,0,0.7071068\n";
+        let r = read_str(text, "r.csv").unwrap();
+        let q = r.attitude.as_ref().unwrap();
+        // The second row is a yaw of 90 degrees: body x points east.
+        let east = q[1] * Vec3::x();
+        assert!((east - Vec3::y()).norm() < 1e-6, "{east:?}");
+        let mut buf = Vec::new();
+        write_to(&r, &mut buf, Path::new("mem")).unwrap();
+        let back = read_str(std::str::from_utf8(&buf).unwrap(), "mem").unwrap();
+        assert_eq!(r, back);
+        let e = err(
+            "t_s,thr,mag_x_ut,mag_y_ut,mag_z_ut,att_qw,att_qx,att_qy,att_qz\n0,0,1,2,3,2,0,0,0\n",
+        );
+        assert!(e.contains("row 1") && e.contains("unit quaternion"), "{e}");
+        let e = err("t_s,thr,mag_x_ut,mag_y_ut,mag_z_ut,att_qw\n0,0,1,2,3,1\n");
+        assert!(e.contains("att_qx"), "{e}");
     }
 
     #[test]

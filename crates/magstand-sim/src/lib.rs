@@ -17,6 +17,7 @@
 //! | [`replay`] | the electrical part alone on a recording's own commands, for the diagnosis |
 //! | [`magnetometer`] | Earth field, hard and soft iron, range, quantization, data rate |
 //! | [`stand`] | the frame as a rapier3d rigid body on a compliant mount |
+//! | [`motion`] | a gimbal turning the whole stand: a flight's attitude changes without flying |
 //!
 //! The measurement follows eq. 8, `m_meas = m + mu + dmag(thr) + eta(thr)`, and the recording
 //! carries the truth: `true_field` (m), `true_dist` (dmag) and `true_sd` (sd of mu + eta).
@@ -49,6 +50,7 @@ mod error;
 pub mod hysteresis;
 pub mod interference;
 pub mod magnetometer;
+pub mod motion;
 pub mod motor;
 pub mod noise;
 pub mod program;

@@ -13,6 +13,7 @@ use crate::error::{Checker, SimError};
 use crate::hysteresis::HysteresisParams;
 use crate::interference::InterferenceParams;
 use crate::magnetometer::MagnetometerParams;
+use crate::motion::MotionParams;
 use crate::motor::MotorParams;
 use crate::noise::NoiseParams;
 use crate::program::{DifferentialParams, ProgramParams};
@@ -68,6 +69,8 @@ pub struct LoggingParams {
     pub record_imu: bool,
     /// Write the ground truth columns.
     pub record_truth: bool,
+    /// Write the attitude (`att_q*`).
+    pub record_attitude: bool,
 }
 
 impl Default for LoggingParams {
@@ -78,6 +81,7 @@ impl Default for LoggingParams {
             record_temp: false,
             record_imu: false,
             record_truth: true,
+            record_attitude: false,
         }
     }
 }
@@ -136,6 +140,9 @@ pub struct Scenario {
     /// The rigid body and its mount.
     #[serde(default)]
     pub stand: StandParams,
+    /// A gimbal turning the whole stand (a flight's attitude changes).
+    #[serde(default)]
+    pub motion: MotionParams,
     /// Columns and stream delay.
     #[serde(default)]
     pub logging: LoggingParams,
@@ -277,6 +284,7 @@ impl Scenario {
         self.hysteresis.check(&c)?;
         self.interference.check(&c)?;
         self.stand.check(&c, self.physics_hz)?;
+        self.motion.check(&c)?;
         c.range("logging.mag_delay_s", self.logging.mag_delay_s, 0.0, 10.0)?;
         self.study.check(&c)?;
         let replay = match &mut self.program {

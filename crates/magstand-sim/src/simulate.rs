@@ -102,6 +102,7 @@ pub fn simulate_observed(s: &ValidScenario, seed: u64, observer: &mut dyn Observ
         temp_c: p.logging.record_temp.then(Vec::new),
         imu: p.logging.record_imu.then(ImuColumns::default),
         truth: p.logging.record_truth.then(GroundTruth::default),
+        attitude: p.logging.record_attitude.then(Vec::new),
         ..Recording::default()
     };
     let mut commands = vec![0.0; n_motors];
@@ -135,9 +136,10 @@ pub fn simulate_observed(s: &ValidScenario, seed: u64, observer: &mut dyn Observ
             }
         };
         let hyst_field = soft * hysteresis.step(&p.hysteresis, total_a);
+        let attitude = p.motion.rotation(t) * body.attitude;
         let snapshot = Snapshot {
             field: soft
-                * (body.attitude.inverse() * earth + avionics_field + p.interference.field_ut(t))
+                * (attitude.inverse() * earth + avionics_field + p.interference.field_ut(t))
                 + hard,
             dist: motor_field + hyst_field + p.thermal.offset_ut(thermal.temp_c),
             sd: Vec3::from(p.noise.sd_ut(total_a, throttle)),
@@ -171,6 +173,10 @@ pub fn simulate_observed(s: &ValidScenario, seed: u64, observer: &mut dyn Observ
             if let Some(imu) = rec.imu.as_mut() {
                 imu.acc_mps2.push(body.specific_force_mps2);
                 imu.gyr_rps.push(body.rate_rps);
+            }
+            if let Some(q) = rec.attitude.as_mut() {
+                // The attitude stream is logged with the commands, not with the delayed field.
+                q.push(attitude);
             }
             if let Some(g) = rec.truth.as_mut() {
                 g.field_ut.push(seen.field);
