@@ -13,6 +13,7 @@ mod diagnose_cmd;
 mod export_cmd;
 mod files;
 mod fit_cmd;
+mod import_cmd;
 mod montecarlo_cmd;
 mod progress;
 mod report_cmd;
@@ -40,6 +41,9 @@ enum Command {
     Diagnose(diagnose_cmd::DiagnoseArgs),
     /// Export a model as PX4 or ArduPilot parameters, or as a C header.
     Export(export_cmd::ExportArgs),
+    /// A PX4 ULog or ArduPilot DataFlash log as a recording (magnetometer, motors, battery,
+    /// attitude, armed and landed state), with its segments, gaps and resets reported.
+    Import(import_cmd::ImportArgs),
     /// Monte Carlo accuracy study against the Cramer-Rao bound (parallel, shardable).
     Montecarlo(montecarlo_cmd::MonteCarloArgs),
     /// Write an HTML report with the figures of a recording, a model and a study.
@@ -56,6 +60,7 @@ fn main() -> ExitCode {
         Command::Compensate(a) => compensate_cmd::run(a),
         Command::Diagnose(a) => diagnose_cmd::run(a),
         Command::Export(a) => export_cmd::run(a),
+        Command::Import(a) => import_cmd::run(a),
         Command::Montecarlo(a) => montecarlo_cmd::run(a),
         Command::Report(a) => report_cmd::run(a),
         Command::Demo(a) => demo::run(a),

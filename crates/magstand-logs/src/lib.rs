@@ -30,7 +30,14 @@
 //! ```
 #![warn(missing_docs)]
 
+pub mod ardupilot;
+pub mod contents;
+pub mod dataflash;
 mod error;
 pub mod export;
+pub mod import;
+pub mod px4;
+pub mod streams;
+pub mod ulog;
 
 pub use error::LogsError;

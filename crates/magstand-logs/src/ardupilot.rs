@@ -1,0 +1,265 @@
+//! ArduPilot messages to magstand streams.
+//!
+//! * `MAG` (instance from its `I` field, or `MAG2`/`MAG3` in older logs): milligauss, already
+//!   offset-corrected and rotated to the body frame by the firmware. The default instance is
+//!   the first internal compass (`COMPASS_EXTERNAL`, `COMPASS_EXTERN2`, `COMPASS_EXTERN3` = 0).
+//! * `RCOU` channels (`C1..` or, in older logs, `Ch1..`), motors located by
+//!   `SERVOn_FUNCTION` = 33.. when set, mapped to 0..1 with `MOT_PWM_MIN`/`MOT_PWM_MAX`, or
+//!   `RC3_MIN`/`RC3_MAX` when those are 0 (ArduPilot's own fallback).
+//! * `BAT` (V, A) or, in Copter 3.4 and older, `CURR` (centivolts, centiamperes).
+//! * `ATT` roll, pitch, yaw in degrees; `EV` 10/11 armed/disarmed, 28/18 took off/landed;
+//!   `GPS` position and GPS week time for the Earth-field model.
+use magstand_core::{Quat, Vec3};
+
+use crate::LogsError;
+use crate::contents::{LogContents, Series};
+use crate::import::ImportOptions;
+use crate::streams::{Position, Stream, VehicleStreams, decimal_year, normalize_output};
+
+const UT_PER_MILLIGAUSS: f64 = 0.1;
+
+/// Reads the streams of an ArduPilot log.
+pub fn streams(log: &LogContents, opts: &ImportOptions) -> Result<VehicleStreams, LogsError> {
+    let mut out = VehicleStreams::default();
+    magnetometer(log, opts, &mut out)?;
+    motors(log, opts, &mut out)?;
+    let (bat, scale) = match log.series("BAT", 0) {
+        Some(b) => (Some(b), 1.0),
+        None => (log.series("CURR", 0), 0.01),
+    };
+    if let Some(b) = bat {
+        out.bat_v = scaled(b, "Volt", scale).filter(|s| s.values.iter().any(|v| *v > 0.5));
+        out.bat_a = scaled(b, "Curr", scale);
+    }
+    if let Some(a) = log.series("ATT", 0)
+        && let (Some(r), Some(p), Some(y)) = (a.field("Roll"), a.field("Pitch"), a.field("Yaw"))
+    {
+        out.attitude = Some(Stream::from_pairs((0..a.len()).map(|k| {
+            let q =
+                Quat::from_euler_angles(r[k].to_radians(), p[k].to_radians(), y[k].to_radians());
+            (
+                a.t_s[k],
+                q.coords.iter().all(|c| c.is_finite()).then_some(q),
+            )
+        })));
+    }
+    let events = |on: i64, off: i64| {
+        let s = Stream::from_pairs(
+            log.events
+                .iter()
+                .filter_map(|&(t, id)| (id == on || id == off).then_some((t, Some(id == on)))),
+        );
+        (!s.is_empty()).then_some(s)
+    };
+    out.armed = events(10, 11);
+    // 28 is NOT_LANDED (took off), 18 LAND_COMPLETE.
+    out.landed = events(18, 28);
+    out.position = position(log);
+    Ok(out)
+}
+
+fn scaled(s: &Series, field: &str, scale: f64) -> Option<Stream<f64>> {
+    let v = s.field(field)?;
+    Some(Stream::from_pairs(
+        s.t_s
+            .iter()
+            .zip(v)
+            .map(|(&t, &x)| (t, x.is_finite().then_some(x * scale))),
+    ))
+}
+
+fn magnetometer(
+    log: &LogContents,
+    opts: &ImportOptions,
+    out: &mut VehicleStreams,
+) -> Result<(), LogsError> {
+    let instances = log.instances("MAG");
+    if instances.is_empty() {
+        return Err(LogsError::Missing {
+            path: log.path.clone(),
+            what: "the magnetometer message MAG".into(),
+            hint: "enable compass logging (LOG_BITMASK includes COMPASS)".into(),
+        });
+    }
+    let external = |i: u8| {
+        let name = match i {
+            0 => "COMPASS_EXTERNAL".to_string(),
+            k => format!("COMPASS_EXTERN{}", k + 1),
+        };
+        log.param(&name)
+    };
+    let inst = match opts.mag {
+        Some(m) if instances.contains(&m) => m,
+        Some(m) => {
+            return Err(LogsError::Unusable {
+                path: log.path.clone(),
+                what: format!(
+                    "--mag {m}: the log has no compass instance {m} (MAG instances {:?}, 0 = MAG, 1 = MAG2, ...)",
+                    instances
+                ),
+            });
+        }
+        None => instances
+            .iter()
+            .copied()
+            .find(|&i| external(i) == Some(0.0))
+            .unwrap_or(instances[0]),
+    };
+    out.notes.push(format!(
+        "magnetometer: compass instance {inst} ({}){}",
+        match external(inst) {
+            Some(0.0) => "internal",
+            Some(_) => "external",
+            None => "internal or external not logged",
+        },
+        if opts.mag.is_none() {
+            format!("; --mag N picks another of {instances:?}")
+        } else {
+            String::new()
+        }
+    ));
+    let s = log.series("MAG", inst).expect("listed instance");
+    let axes: Vec<&[f64]> = ["MagX", "MagY", "MagZ"]
+        .iter()
+        .map(|a| {
+            s.field(a).ok_or_else(|| LogsError::Missing {
+                path: log.path.clone(),
+                what: format!("field {a} of the MAG message"),
+                hint: "the import reads MagX, MagY, MagZ".into(),
+            })
+        })
+        .collect::<Result<_, _>>()?;
+    out.mag_ut = Stream::from_pairs((0..s.len()).map(|r| {
+        let v = Vec3::new(axes[0][r], axes[1][r], axes[2][r]) * UT_PER_MILLIGAUSS;
+        (s.t_s[r], v.iter().all(|x| x.is_finite()).then_some(v))
+    }));
+    Ok(())
+}
+
+fn motors(
+    log: &LogContents,
+    opts: &ImportOptions,
+    out: &mut VehicleStreams,
+) -> Result<(), LogsError> {
+    let Some(s) = log.series("RCOU", 0) else {
+        return Err(LogsError::Missing {
+            path: log.path.clone(),
+            what: "the motor output message RCOU".into(),
+            hint: "enable RCOUT logging (LOG_BITMASK)".into(),
+        });
+    };
+    // Newer logs name channels C1.., older ones Ch1...
+    let channel = |c: usize| {
+        s.field(&format!("C{c}"))
+            .or_else(|| s.field(&format!("Ch{c}")))
+    };
+    let logged: usize = (1..=32).take_while(|&c| channel(c).is_some()).count();
+    let by_function: Vec<usize> = (0..12)
+        .map_while(|k| {
+            (1..=32).find(|c| log.param(&format!("SERVO{c}_FUNCTION")) == Some(33.0 + k as f64))
+        })
+        .collect();
+    let frame = match log.param("FRAME_CLASS").map(|v| v as i64) {
+        Some(1) => Some(4),
+        Some(2) | Some(5) => Some(6),
+        Some(3) | Some(4) => Some(8),
+        Some(7) => Some(3),
+        _ => None,
+    };
+    let n = match (opts.motors, by_function.len(), frame) {
+        (Some(n), _, _) => n,
+        (None, f, _) if f > 0 => f,
+        (None, _, Some(n)) => n,
+        // Old logs without FRAME_CLASS log only the motor channels of the frame.
+        (None, _, None) if (3..=4).contains(&logged) => logged,
+        _ => {
+            return Err(LogsError::Missing {
+                path: log.path.clone(),
+                what: format!(
+                    "the motor count (no SERVOn_FUNCTION = 33.., no FRAME_CLASS, {logged} RCOU channels)"
+                ),
+                hint: "give --motors N".into(),
+            });
+        }
+    };
+    let channels: Vec<usize> = if by_function.len() >= n && opts.motors.is_none() {
+        by_function[..n].to_vec()
+    } else {
+        (1..=n).collect()
+    };
+    let cols: Vec<&[f64]> = channels
+        .iter()
+        .map(|&c| {
+            channel(c).ok_or_else(|| LogsError::Missing {
+                path: log.path.clone(),
+                what: format!("RCOU channel {c}"),
+                hint: format!("the log has {logged} channels; check --motors"),
+            })
+        })
+        .collect::<Result<_, _>>()?;
+    let positive = |n: &str| log.param(n).filter(|v| *v > 0.0);
+    let (lo, hi, source) = match opts.pwm_range {
+        Some((lo, hi)) => (lo, hi, "--pwm-range"),
+        None => match (positive("MOT_PWM_MIN"), positive("MOT_PWM_MAX")) {
+            (Some(lo), Some(hi)) => (lo, hi, "MOT_PWM_MIN/MAX"),
+            _ => match (positive("RC3_MIN"), positive("RC3_MAX")) {
+                (Some(lo), Some(hi)) => (lo, hi, "RC3_MIN/MAX (MOT_PWM_MIN/MAX unset)"),
+                _ => {
+                    return Err(LogsError::Missing {
+                        path: log.path.clone(),
+                        what: "the motor PWM limits (MOT_PWM_MIN/MAX or RC3_MIN/MAX in PARM)"
+                            .into(),
+                        hint: "give --pwm-range MIN:MAX".into(),
+                    });
+                }
+            },
+        },
+    };
+    if hi <= lo {
+        return Err(LogsError::Unusable {
+            path: log.path.clone(),
+            what: format!("motor PWM range {lo}..{hi} from {source} is empty"),
+        });
+    }
+    out.notes.push(format!(
+        "motors: RCOU channels {channels:?}, PWM {lo}..{hi} from {source}"
+    ));
+    out.motors = Stream::from_pairs((0..s.len()).map(|r| {
+        (
+            s.t_s[r],
+            Some(
+                cols.iter()
+                    .map(|c| normalize_output(c[r], lo, hi))
+                    .collect(),
+            ),
+        )
+    }));
+    Ok(())
+}
+
+fn position(log: &LogContents) -> Option<Position> {
+    let s = log.series("GPS", 0)?;
+    let (lat, lon) = (s.field("Lat")?, s.field("Lng")?);
+    let status = s.field("Status");
+    let r = (0..s.len())
+        .rev()
+        .find(|&r| lat[r] != 0.0 && status.is_none_or(|st| st[r] >= 3.0))?;
+    // GPS time: week number and milliseconds of the week (GWk/GMS, or Week/T in old logs).
+    let week = s.field("GWk").or_else(|| s.field("Week")).map(|w| w[r]);
+    let ms = s.field("GMS").or_else(|| s.field("T")).map(|m| m[r]);
+    // The GPS epoch, 1980-01-06, is Unix time 315964800; leap seconds do not matter here.
+    let year = match (week, ms) {
+        (Some(w), Some(ms)) if w > 0.0 => {
+            Some(decimal_year(315_964_800.0 + w * 604_800.0 + ms * 1e-3))
+        }
+        _ => None,
+    };
+    // Older logs store 1e-7 degrees as integers.
+    let deg = |v: f64| if v.abs() > 360.0 { v * 1e-7 } else { v };
+    Some(Position {
+        lat_deg: deg(lat[r]),
+        lon_deg: deg(lon[r]),
+        alt_m: s.field("Alt").map_or(0.0, |a| a[r]),
+        year,
+    })
+}

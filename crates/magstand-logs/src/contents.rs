@@ -1,0 +1,136 @@
+//! What the importers need from a log, whatever its format: time series of numeric fields per
+//! topic and instance, the parameters, ArduPilot's events, and how the file ended.
+use std::collections::BTreeMap;
+use std::path::PathBuf;
+
+/// One topic instance: a time stamp per message and a column per numeric field.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Series {
+    /// Time of each message on the log's own clock, s.
+    pub t_s: Vec<f64>,
+    /// Numeric fields by name, one value per message.
+    pub fields: BTreeMap<String, Vec<f64>>,
+}
+
+impl Series {
+    /// A field's values, if the topic has it.
+    pub fn field(&self, name: &str) -> Option<&[f64]> {
+        self.fields.get(name).map(|v| v.as_slice())
+    }
+
+    /// Number of messages.
+    pub fn len(&self) -> usize {
+        self.t_s.len()
+    }
+
+    /// True when there are no messages.
+    pub fn is_empty(&self) -> bool {
+        self.t_s.is_empty()
+    }
+
+    /// Appends one message; fields not seen before start with NaN for the earlier messages.
+    pub(crate) fn push(&mut self, t_s: f64, values: impl IntoIterator<Item = (String, f64)>) {
+        let n = self.t_s.len();
+        self.t_s.push(t_s);
+        for (name, v) in values {
+            let col = self.fields.entry(name).or_insert_with(|| vec![f64::NAN; n]);
+            col.resize(n, f64::NAN);
+            col.push(v);
+        }
+        for col in self.fields.values_mut() {
+            col.resize(n + 1, f64::NAN);
+        }
+    }
+}
+
+/// Which log format a file was.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum LogFormat {
+    /// PX4 ULog.
+    Ulog,
+    /// ArduPilot DataFlash (.bin).
+    DataFlash,
+}
+
+impl LogFormat {
+    /// Its usual name.
+    pub fn name(self) -> &'static str {
+        match self {
+            LogFormat::Ulog => "ULog",
+            LogFormat::DataFlash => "DataFlash",
+        }
+    }
+}
+
+/// A log reduced to what magstand reads from it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LogContents {
+    /// Where it came from (for messages).
+    pub path: PathBuf,
+    /// Its format.
+    pub format: LogFormat,
+    /// Parameters, last value wins.
+    pub params: BTreeMap<String, f64>,
+    /// Topics (PX4) or message types (ArduPilot) by name, then by instance.
+    pub topics: BTreeMap<String, BTreeMap<u8, Series>>,
+    /// ArduPilot `EV` events: (time s, id), in log order.
+    pub events: Vec<(f64, i64)>,
+    /// `None` when the file ended cleanly; otherwise how it broke off. What came before is kept.
+    pub damage: Option<String>,
+}
+
+impl LogContents {
+    pub(crate) fn new(path: PathBuf, format: LogFormat) -> Self {
+        Self {
+            path,
+            format,
+            params: BTreeMap::new(),
+            topics: BTreeMap::new(),
+            events: Vec::new(),
+            damage: None,
+        }
+    }
+
+    /// One topic instance, if logged with at least one message.
+    pub fn series(&self, topic: &str, instance: u8) -> Option<&Series> {
+        self.topics
+            .get(topic)
+            .and_then(|m| m.get(&instance))
+            .filter(|s| !s.is_empty())
+    }
+
+    /// The instances of a topic that have messages.
+    pub fn instances(&self, topic: &str) -> Vec<u8> {
+        self.topics
+            .get(topic)
+            .map(|m| {
+                m.iter()
+                    .filter(|(_, s)| !s.is_empty())
+                    .map(|(i, _)| *i)
+                    .collect()
+            })
+            .unwrap_or_default()
+    }
+
+    /// A parameter's value.
+    pub fn param(&self, name: &str) -> Option<f64> {
+        self.params.get(name).copied()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn fields_appearing_late_are_padded_with_nan() {
+        let mut s = Series::default();
+        s.push(0.0, [("a".to_string(), 1.0)]);
+        s.push(1.0, [("a".to_string(), 2.0), ("b".to_string(), 5.0)]);
+        s.push(2.0, [("b".to_string(), 6.0)]);
+        assert_eq!(s.field("a").unwrap()[..2], [1.0, 2.0]);
+        assert!(s.field("a").unwrap()[2].is_nan());
+        assert!(s.field("b").unwrap()[0].is_nan());
+        assert_eq!(s.field("b").unwrap()[1..], [5.0, 6.0]);
+    }
+}

@@ -1,0 +1,472 @@
+//! PX4 topics to magstand streams.
+//!
+//! * `sensor_mag[N]` (gauss, as the driver published it) with the log's own calibration
+//!   (`CAL_MAGn_{X,Y,Z}OFF`, `SCALE`, `ODIAG`, matched by `CAL_MAGn_ID` = `device_id`) and
+//!   rotation (`CAL_MAGn_ROT`; -1 marks an internal sensor, which follows `SENS_BOARD_ROT`) so
+//!   the field is in the body frame as PX4's estimator sees it, before any power compensation.
+//! * Motors: `actuator_motors` (0..1, PX4 1.13 on) when logged; otherwise `actuator_outputs`
+//!   mapped with `PWM_MAIN_MINn`/`MAXn` (or the older `PWM_MIN`/`PWM_MAX`), motors located by
+//!   `PWM_MAIN_FUNCn` = 101.. when set. UAVCAN outputs (a non-zero instance with
+//!   `UAVCAN_ENABLE` >= 2) are raw 0..8191.
+//! * `battery_status[0]`, `vehicle_attitude`, `actuator_armed` (or `vehicle_status`),
+//!   `vehicle_land_detected`, and GPS position and UTC time for the Earth-field model.
+use magstand_core::{Quat, Vec3};
+
+use crate::LogsError;
+use crate::contents::{LogContents, Series};
+use crate::import::ImportOptions;
+use crate::streams::{Position, Stream, VehicleStreams, decimal_year, normalize_output};
+
+const UT_PER_GAUSS: f64 = 100.0;
+
+fn missing(log: &LogContents, what: &str, hint: &str) -> LogsError {
+    LogsError::Missing {
+        path: log.path.clone(),
+        what: what.to_string(),
+        hint: hint.to_string(),
+    }
+}
+
+/// A PX4 `Rotation` enum value as a rotation from the sensor to the body frame, for the values
+/// that are a yaw in steps of 45 degrees, optionally after a roll of 180 degrees (0..=15).
+fn px4_rotation(code: i64) -> Option<Quat> {
+    let (roll, yaw_steps) = match code {
+        0..=7 => (0.0, code),
+        8..=15 => (std::f64::consts::PI, code - 8),
+        _ => return None,
+    };
+    Some(Quat::from_euler_angles(
+        roll,
+        0.0,
+        (45.0 * yaw_steps as f64).to_radians(),
+    ))
+}
+
+/// Reads the streams of a PX4 log.
+pub fn streams(log: &LogContents, opts: &ImportOptions) -> Result<VehicleStreams, LogsError> {
+    let mut out = VehicleStreams::default();
+    magnetometer(log, opts, &mut out)?;
+    motors(log, opts, &mut out)?;
+    if let Some(b) = log.series("battery_status", 0) {
+        out.bat_v = scalar(b, "voltage_v", |v| v > 0.5);
+        // PX4 logs -1 for a current it does not measure.
+        out.bat_a = scalar(b, "current_a", |a| a >= 0.0);
+    }
+    if let Some(a) = log.series("vehicle_attitude", 0) {
+        let q: Vec<Option<&[f64]>> = (0..4).map(|i| a.field(&format!("q[{i}]"))).collect();
+        if q.iter().all(|c| c.is_some()) {
+            let q: Vec<&[f64]> = q.into_iter().flatten().collect();
+            out.attitude = Some(Stream::from_pairs((0..a.len()).map(|r| {
+                let v = nalgebra::Quaternion::new(q[0][r], q[1][r], q[2][r], q[3][r]);
+                let ok = v.norm().is_finite() && (v.norm() - 1.0).abs() < 0.01;
+                (a.t_s[r], ok.then(|| Quat::from_quaternion(v)))
+            })));
+        }
+    }
+    out.armed = log
+        .series("actuator_armed", 0)
+        .and_then(|s| flag(s, "armed", |v| v != 0.0))
+        .or_else(|| {
+            // vehicle_status.arming_state 2 is ARMED.
+            log.series("vehicle_status", 0)
+                .and_then(|s| flag(s, "arming_state", |v| v == 2.0))
+        });
+    out.landed = log
+        .series("vehicle_land_detected", 0)
+        .and_then(|s| flag(s, "landed", |v| v != 0.0));
+    out.position = position(log);
+    Ok(out)
+}
+
+fn scalar(s: &Series, field: &str, valid: impl Fn(f64) -> bool) -> Option<Stream<f64>> {
+    let v = s.field(field)?;
+    let st = Stream::from_pairs(
+        s.t_s
+            .iter()
+            .zip(v)
+            .map(|(&t, &x)| (t, (x.is_finite() && valid(x)).then_some(x))),
+    );
+    (!st.is_empty()).then_some(st)
+}
+
+fn flag(s: &Series, field: &str, on: impl Fn(f64) -> bool) -> Option<Stream<bool>> {
+    let v = s.field(field)?;
+    Some(Stream::from_pairs(
+        s.t_s.iter().zip(v).map(|(&t, &x)| (t, Some(on(x)))),
+    ))
+}
+
+fn magnetometer(
+    log: &LogContents,
+    opts: &ImportOptions,
+    out: &mut VehicleStreams,
+) -> Result<(), LogsError> {
+    let instances = log.instances("sensor_mag");
+    if instances.is_empty() {
+        return vehicle_magnetometer(log, opts, out);
+    }
+    // Calibration slot of each instance: CAL_MAGk_ID equals the instance's device_id.
+    let slot = |inst: u8| -> Option<usize> {
+        let id = log
+            .series("sensor_mag", inst)?
+            .field("device_id")?
+            .first()?;
+        (0..4).find(|k| log.param(&format!("CAL_MAG{k}_ID")) == Some(*id))
+    };
+    let internal =
+        |inst: u8| slot(inst).and_then(|k| log.param(&format!("CAL_MAG{k}_ROT"))) == Some(-1.0);
+    let inst = match opts.mag {
+        Some(m) => {
+            if !instances.contains(&m) {
+                return Err(LogsError::Unusable {
+                    path: log.path.clone(),
+                    what: format!(
+                        "--mag {m}: sensor_mag has no instance {m}; the log has {}",
+                        list(&instances)
+                    ),
+                });
+            }
+            out.notes
+                .push(format!("magnetometer: sensor_mag[{m}] (--mag)"));
+            m
+        }
+        None => match instances.iter().copied().find(|&i| internal(i)) {
+            Some(i) => {
+                out.notes.push(format!(
+                    "magnetometer: sensor_mag[{i}], the first internal one (CAL_MAG{}_ROT = -1); --mag N picks another of {}",
+                    slot(i).unwrap_or(0),
+                    list(&instances)
+                ));
+                i
+            }
+            None => {
+                let i = instances[0];
+                out.notes.push(format!(
+                    "magnetometer: sensor_mag[{i}] (no instance is marked internal); --mag N picks another of {}",
+                    list(&instances)
+                ));
+                i
+            }
+        },
+    };
+    let s = log.series("sensor_mag", inst).expect("listed instance");
+    let axes: Vec<&[f64]> = ["x", "y", "z"]
+        .iter()
+        .map(|a| {
+            s.field(a).ok_or_else(|| {
+                missing(
+                    log,
+                    &format!("sensor_mag[{inst}].{a}"),
+                    "the topic has no field for this axis",
+                )
+            })
+        })
+        .collect::<Result<_, _>>()?;
+    let (offset, scale, rotation) = match slot(inst) {
+        Some(k) => {
+            let p =
+                |n: &str, default: f64| log.param(&format!("CAL_MAG{k}_{n}")).unwrap_or(default);
+            let off = Vec3::new(p("XOFF", 0.0), p("YOFF", 0.0), p("ZOFF", 0.0));
+            let (xo, yo, zo) = (p("XODIAG", 0.0), p("YODIAG", 0.0), p("ZODIAG", 0.0));
+            let scale = nalgebra::Matrix3::new(
+                p("XSCALE", 1.0),
+                xo,
+                yo,
+                xo,
+                p("YSCALE", 1.0),
+                zo,
+                yo,
+                zo,
+                p("ZSCALE", 1.0),
+            );
+            let code = match p("ROT", -1.0) as i64 {
+                -1 => log.param("SENS_BOARD_ROT").unwrap_or(0.0) as i64,
+                c => c,
+            };
+            let rot = px4_rotation(code).unwrap_or_else(|| {
+                out.notes.push(format!(
+                    "warning: rotation {code} of CAL_MAG{k} is not one magstand applies (0..15); the field stays in the sensor frame"
+                ));
+                Quat::identity()
+            });
+            out.notes.push(format!(
+                "calibration CAL_MAG{k} applied (offsets, scale, rotation {code})"
+            ));
+            (off, scale, rot)
+        }
+        None => {
+            out.notes.push(
+                "no CAL_MAGn_ID matches this sensor: the field is as the driver published it, uncalibrated".into(),
+            );
+            (
+                Vec3::zeros(),
+                nalgebra::Matrix3::identity(),
+                Quat::identity(),
+            )
+        }
+    };
+    out.mag_ut = Stream::from_pairs((0..s.len()).map(|r| {
+        let raw = Vec3::new(axes[0][r], axes[1][r], axes[2][r]);
+        let body = rotation * (scale * (raw - offset)) * UT_PER_GAUSS;
+        (s.t_s[r], body.iter().all(|v| v.is_finite()).then_some(body))
+    }));
+    out.mag_temp_c = scalar(s, "temperature", |c| (-60.0..150.0).contains(&c))
+        .filter(|t| t.len() == out.mag_ut.len());
+    Ok(())
+}
+
+/// Older logs carry only `vehicle_magnetometer`: calibrated, in the body frame, the sensor the
+/// estimator selected, and after any power compensation PX4 already applied.
+fn vehicle_magnetometer(
+    log: &LogContents,
+    opts: &ImportOptions,
+    out: &mut VehicleStreams,
+) -> Result<(), LogsError> {
+    let instances = log.instances("vehicle_magnetometer");
+    let inst = opts.mag.unwrap_or(0);
+    let Some(s) = log.series("vehicle_magnetometer", inst) else {
+        return Err(if instances.is_empty() {
+            missing(
+                log,
+                "a magnetometer topic (sensor_mag or vehicle_magnetometer)",
+                "log sensor_mag (the default logging profile of PX4 1.12 on has it)",
+            )
+        } else {
+            LogsError::Unusable {
+                path: log.path.clone(),
+                what: format!(
+                    "--mag {inst}: vehicle_magnetometer has no instance {inst}; the log has {}",
+                    list(&instances)
+                ),
+            }
+        });
+    };
+    let axes: Vec<&[f64]> = (0..3)
+        .map(|a| {
+            s.field(&format!("magnetometer_ga[{a}]")).ok_or_else(|| {
+                missing(
+                    log,
+                    &format!("vehicle_magnetometer.magnetometer_ga[{a}]"),
+                    "the topic has no field for this axis",
+                )
+            })
+        })
+        .collect::<Result<_, _>>()?;
+    let comp = log.param("CAL_MAG_COMP_TYP").unwrap_or(0.0);
+    out.notes.push(format!(
+        "magnetometer: vehicle_magnetometer[{inst}] (no sensor_mag in this log): calibrated, body frame{}",
+        if comp != 0.0 {
+            format!("; WARNING: PX4 power compensation was on (CAL_MAG_COMP_TYP {comp}), so part of the disturbance is already removed")
+        } else {
+            String::new()
+        }
+    ));
+    out.mag_ut = Stream::from_pairs((0..s.len()).map(|r| {
+        let v = Vec3::new(axes[0][r], axes[1][r], axes[2][r]) * UT_PER_GAUSS;
+        (s.t_s[r], v.iter().all(|x| x.is_finite()).then_some(v))
+    }));
+    Ok(())
+}
+
+fn list(instances: &[u8]) -> String {
+    let v: Vec<String> = instances.iter().map(|i| i.to_string()).collect();
+    format!("instance(s) {}", v.join(", "))
+}
+
+fn motors(
+    log: &LogContents,
+    opts: &ImportOptions,
+    out: &mut VehicleStreams,
+) -> Result<(), LogsError> {
+    if opts.outputs.is_none()
+        && let Some(m) = log.series("actuator_motors", 0)
+    {
+        let cols: Vec<&[f64]> = (0..16)
+            .map_while(|i| m.field(&format!("control[{i}]")))
+            .take_while(|c| c.iter().any(|v| v.is_finite()))
+            .collect();
+        let n = opts.motors.unwrap_or(cols.len());
+        if n == 0 || n > cols.len() {
+            return Err(LogsError::Unusable {
+                path: log.path.clone(),
+                what: format!(
+                    "actuator_motors has {} motor channel(s) with values; {n} requested",
+                    cols.len()
+                ),
+            });
+        }
+        out.notes.push(format!(
+            "motors: actuator_motors control[0..{n}] (0..1; NaN, disarmed, is 0)"
+        ));
+        out.motors = Stream::from_pairs((0..m.len()).map(|r| {
+            (
+                m.t_s[r],
+                Some(
+                    cols[..n]
+                        .iter()
+                        .map(|c| normalize_output(c[r], 0.0, 1.0))
+                        .collect(),
+                ),
+            )
+        }));
+        return Ok(());
+    }
+    let instances = log.instances("actuator_outputs");
+    if instances.is_empty() {
+        return Err(missing(
+            log,
+            "motor outputs (actuator_motors or actuator_outputs)",
+            "the import needs the motor commands",
+        ));
+    }
+    let inst = match opts.outputs {
+        Some(i) if instances.contains(&i) => i,
+        Some(i) => {
+            return Err(LogsError::Unusable {
+                path: log.path.clone(),
+                what: format!(
+                    "--outputs {i}: actuator_outputs has no instance {i}; the log has {}",
+                    list(&instances)
+                ),
+            });
+        }
+        // The first instance whose first output moves: instance 0 is often an idle PWM bank
+        // when the ESCs are on a bus.
+        None => instances
+            .iter()
+            .copied()
+            .find(|&i| {
+                log.series("actuator_outputs", i)
+                    .and_then(|s| s.field("output[0]"))
+                    .is_some_and(|c| {
+                        let (lo, hi) = c
+                            .iter()
+                            .fold((f64::MAX, f64::MIN), |(a, b), &v| (a.min(v), b.max(v)));
+                        hi - lo > 1.0
+                    })
+            })
+            .unwrap_or(instances[0]),
+    };
+    let s = log
+        .series("actuator_outputs", inst)
+        .expect("listed instance");
+    // Motor k on channel c: PWM_MAIN_FUNCc = 101 + k when the log has output functions.
+    let by_function: Vec<usize> = (0..16)
+        .map_while(|k| {
+            (1..=16).find(|c| log.param(&format!("PWM_MAIN_FUNC{c}")) == Some(101.0 + k as f64))
+        })
+        .map(|c| c - 1)
+        .collect();
+    let airframe_motors = match log.param("MAV_TYPE").map(|v| v as i64) {
+        Some(2) => Some(4),
+        Some(13) => Some(6),
+        Some(14) => Some(8),
+        Some(15) => Some(3),
+        _ => None,
+    };
+    let n = match (opts.motors, by_function.len(), airframe_motors) {
+        (Some(n), _, _) => n,
+        (None, f, _) if f > 0 => f,
+        (None, _, Some(n)) => n,
+        _ => {
+            return Err(missing(
+                log,
+                "the motor count (no PWM_MAIN_FUNCn = 101.. and no multirotor MAV_TYPE)",
+                "give --motors N",
+            ));
+        }
+    };
+    let channels: Vec<usize> = if by_function.len() >= n && opts.motors.is_none() {
+        by_function[..n].to_vec()
+    } else {
+        (0..n).collect()
+    };
+    let cols: Vec<&[f64]> = channels
+        .iter()
+        .map(|c| {
+            s.field(&format!("output[{c}]")).ok_or_else(|| {
+                missing(
+                    log,
+                    &format!("actuator_outputs[{inst}].output[{c}]"),
+                    "fewer outputs than motors; check --motors",
+                )
+            })
+        })
+        .collect::<Result<_, _>>()?;
+    let uavcan = inst > 0 && log.param("UAVCAN_ENABLE").is_some_and(|v| v >= 2.0);
+    let ranges: Vec<(f64, f64)> = channels
+        .iter()
+        .map(|&c| {
+            if let Some(r) = opts.pwm_range {
+                return Ok(r);
+            }
+            if uavcan {
+                return Ok((0.0, 8191.0));
+            }
+            let ch = c + 1;
+            let pair = |lo: &str, hi: &str| Some((log.param(lo)?, log.param(hi)?));
+            pair(&format!("PWM_MAIN_MIN{ch}"), &format!("PWM_MAIN_MAX{ch}"))
+                .or_else(|| pair("PWM_MIN", "PWM_MAX"))
+                .filter(|(lo, hi)| hi > lo)
+                .ok_or_else(|| {
+                    missing(
+                        log,
+                        &format!("the PWM limits of output {ch} (PWM_MAIN_MIN{ch}/PWM_MAIN_MAX{ch} or PWM_MIN/PWM_MAX)"),
+                        "give --pwm-range MIN:MAX",
+                    )
+                })
+        })
+        .collect::<Result<_, _>>()?;
+    out.notes.push(format!(
+        "motors: actuator_outputs[{inst}] channels {:?}, range {}",
+        channels.iter().map(|c| c + 1).collect::<Vec<_>>(),
+        if opts.pwm_range.is_some() {
+            "from --pwm-range".to_string()
+        } else if uavcan {
+            "UAVCAN raw 0..8191".to_string()
+        } else {
+            format!("{:?} from the log's PWM parameters", ranges[0])
+        }
+    ));
+    out.motors = Stream::from_pairs((0..s.len()).map(|r| {
+        (
+            s.t_s[r],
+            Some(
+                cols.iter()
+                    .zip(&ranges)
+                    .map(|(c, (lo, hi))| normalize_output(c[r], *lo, *hi))
+                    .collect(),
+            ),
+        )
+    }));
+    Ok(())
+}
+
+fn position(log: &LogContents) -> Option<Position> {
+    for topic in ["vehicle_gps_position", "sensor_gps"] {
+        let Some(s) = log.series(topic, 0) else {
+            continue;
+        };
+        // PX4 1.14 on logs degrees; earlier versions 1e-7 degrees as integers.
+        let (lat, lon, scale) = match (s.field("latitude_deg"), s.field("longitude_deg")) {
+            (Some(a), Some(o)) => (a, o, 1.0),
+            _ => (s.field("lat")?, s.field("lon")?, 1e-7),
+        };
+        let alt = s
+            .field("altitude_msl_m")
+            .map(|a| (a, 1.0))
+            .or_else(|| s.field("alt").map(|a| (a, 1e-3)));
+        let fix = s.field("fix_type");
+        let r = (0..s.len())
+            .rev()
+            .find(|&r| lat[r] != 0.0 && lon[r] != 0.0 && fix.is_none_or(|f| f[r] >= 3.0))?;
+        let utc = s.field("time_utc_usec").map(|u| u[r]).filter(|u| *u > 1e15);
+        return Some(Position {
+            lat_deg: lat[r] * scale,
+            lon_deg: lon[r] * scale,
+            alt_m: alt.map_or(0.0, |(a, k)| a[r] * k),
+            year: utc.map(|u| decimal_year(u * 1e-6)),
+        });
+    }
+    None
+}

@@ -1,0 +1,131 @@
+//! The streams an import needs, each on its own time base, as the format mappings ([`crate::px4`],
+//! [`crate::ardupilot`]) produce them; [`crate::import`] puts them onto the magnetometer's
+//! time stamps.
+use magstand_core::{Quat, Vec3};
+
+/// A stream of values with its own time stamps.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Stream<T> {
+    /// Time of each value on the log's clock, s.
+    pub t_s: Vec<f64>,
+    /// The values.
+    pub values: Vec<T>,
+}
+
+impl<T> Stream<T> {
+    /// A stream from (time, value) pairs whose value exists, sorted by time as logged.
+    pub fn from_pairs(pairs: impl IntoIterator<Item = (f64, Option<T>)>) -> Self {
+        let mut s = Stream {
+            t_s: Vec::new(),
+            values: Vec::new(),
+        };
+        for (t, v) in pairs {
+            if let Some(v) = v
+                && t.is_finite()
+            {
+                s.t_s.push(t);
+                s.values.push(v);
+            }
+        }
+        s
+    }
+
+    /// Number of values.
+    pub fn len(&self) -> usize {
+        self.t_s.len()
+    }
+
+    /// True when empty.
+    pub fn is_empty(&self) -> bool {
+        self.t_s.is_empty()
+    }
+}
+
+/// Position and date for the Earth-field model.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Position {
+    /// Latitude, degrees north.
+    pub lat_deg: f64,
+    /// Longitude, degrees east.
+    pub lon_deg: f64,
+    /// Altitude above mean sea level, m.
+    pub alt_m: f64,
+    /// Date as a decimal year (2024.5 is early July 2024), when the log carries GPS time.
+    pub year: Option<f64>,
+}
+
+/// Everything an import reads from one log.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct VehicleStreams {
+    /// The chosen magnetometer, body frame, µT.
+    pub mag_ut: Stream<Vec3>,
+    /// The magnetometer's temperature, °C, when it reports one.
+    pub mag_temp_c: Option<Stream<f64>>,
+    /// Motor commands mapped to 0..1, one entry per motor.
+    pub motors: Stream<Vec<f64>>,
+    /// Battery voltage, V.
+    pub bat_v: Option<Stream<f64>>,
+    /// Battery current, A.
+    pub bat_a: Option<Stream<f64>>,
+    /// Attitude, body to north-east-down.
+    pub attitude: Option<Stream<Quat>>,
+    /// Armed state changes (or samples).
+    pub armed: Option<Stream<bool>>,
+    /// Landed state changes (or samples).
+    pub landed: Option<Stream<bool>>,
+    /// Where and when, from GPS.
+    pub position: Option<Position>,
+    /// What the mapping chose and why (instance, PWM range, motor count), for the summary.
+    pub notes: Vec<String>,
+}
+
+/// Decimal year of a Unix time in seconds (UTC; leap seconds do not matter at this precision).
+pub fn decimal_year(unix_s: f64) -> f64 {
+    let days = unix_s / 86_400.0;
+    // Days from 1970-01-01 to 1 January of each year, by the Gregorian rule.
+    let mut year = 1970i64;
+    let mut start = 0.0;
+    loop {
+        let len = if (year % 4 == 0 && year % 100 != 0) || year % 400 == 0 {
+            366.0
+        } else {
+            365.0
+        };
+        if days < start + len {
+            return year as f64 + (days - start) / len;
+        }
+        start += len;
+        year += 1;
+    }
+}
+
+/// Maps a raw output to 0..1 over `[lo, hi]`, clamping; NaN (a disarmed output) is 0.
+pub fn normalize_output(raw: f64, lo: f64, hi: f64) -> f64 {
+    if raw.is_nan() {
+        return 0.0;
+    }
+    ((raw - lo) / (hi - lo)).clamp(0.0, 1.0)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn decimal_year_of_known_dates() {
+        assert_eq!(decimal_year(0.0), 1970.0);
+        // 2024-01-01T00:00:00Z = 1704067200; 2024 is a leap year, so 1 July is day 182.
+        assert!((decimal_year(1_704_067_200.0) - 2024.0).abs() < 1e-9);
+        let july = 1_704_067_200.0 + 182.0 * 86_400.0;
+        assert!((decimal_year(july) - (2024.0 + 182.0 / 366.0)).abs() < 1e-9);
+    }
+
+    #[test]
+    fn outputs_map_to_unit_range() {
+        assert_eq!(normalize_output(1000.0, 1000.0, 2000.0), 0.0);
+        assert_eq!(normalize_output(1500.0, 1000.0, 2000.0), 0.5);
+        assert_eq!(normalize_output(900.0, 1000.0, 2000.0), 0.0);
+        assert_eq!(normalize_output(f64::NAN, 1000.0, 2000.0), 0.0);
+        assert_eq!(normalize_output(2100.0, 1000.0, 2000.0), 1.0);
+    }
+}
