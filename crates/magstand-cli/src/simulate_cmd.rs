@@ -7,6 +7,7 @@ use clap::Args;
 use crate::files;
 use crate::progress::SimulationBar;
 use magstand_core::{atomic_file, recording_csv};
+use magstand_logs::log_writer::{LogWriteOptions, write_dataflash, write_ulog};
 use magstand_sim::{Scenario, simulate_observed};
 
 /// Arguments of `magstand simulate`.
@@ -24,6 +25,10 @@ pub struct SimulateArgs {
     /// Override a scenario value, e.g. `--set supply.capacity_ah=1.3` (repeatable).
     #[arg(long = "set", value_name = "KEY=VALUE")]
     overrides: Vec<String>,
+    /// Also write the run as a PX4 ULog (recording.ulg) and an ArduPilot DataFlash log
+    /// (recording.bin), for `magstand import` and other log tools.
+    #[arg(long)]
+    logs: bool,
 }
 
 /// Loads a scenario from a path or `builtin:NAME`, with overrides, and checks it.
@@ -61,6 +66,23 @@ pub fn run(a: SimulateArgs) -> Result<()> {
     );
     recording_csv::write(&rec, &rec_path)?;
     atomic_file::write_bytes(&scn_path, resolved.as_bytes())?;
+    if a.logs {
+        let opts = LogWriteOptions {
+            // A stand turned by the gimbal stands in for a flight.
+            landed: !scenario.params().motion.is_on(),
+            ..LogWriteOptions::default()
+        };
+        for (name, ulog) in [("recording.ulg", true), ("recording.bin", false)] {
+            let path = a.out.join(name);
+            files::refuse_overwriting_inputs(&[&input], &[&path])?;
+            if ulog {
+                write_ulog(&rec, &path, &opts)?;
+            } else {
+                write_dataflash(&rec, &path, &opts)?;
+            }
+            println!("wrote {}", path.display());
+        }
+    }
     println!(
         "wrote {} ({} rows, {:.1} s) and {}",
         rec_path.display(),

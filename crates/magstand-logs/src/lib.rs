@@ -36,6 +36,7 @@ pub mod dataflash;
 mod error;
 pub mod export;
 pub mod import;
+pub mod log_writer;
 pub mod px4;
 pub mod streams;
 pub mod ulog;
