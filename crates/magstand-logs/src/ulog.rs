@@ -1,5 +1,12 @@
 //! PX4 ULog files read with the `px4-ulog` crate (its streaming parser, so only the topics
 //! magstand uses are kept in memory).
+//!
+//! One guard sits in front of the crate: version 0.6.1 slices message payloads by lengths
+//! read from the payload itself (a parameter's key length, an info key length, the fixed
+//! fields of a logging message) without checking them, and panics on a corrupt message whose
+//! length field points past its end. `framing_guard` walks the message framing first and
+//! cuts the file at the first message whose own lengths are inconsistent; the crate then
+//! reads the valid prefix and the cut is reported as damage.
 use std::collections::HashMap;
 use std::path::Path;
 
@@ -95,6 +102,42 @@ fn value(data: &[u8], off: usize, ty: &FlattenedFieldType) -> Option<f64> {
     })
 }
 
+/// The offset of the first message whose internal lengths do not fit its size, and what was
+/// wrong; `None` when every complete message is consistent.
+fn framing_guard(bytes: &[u8]) -> Option<(usize, String)> {
+    let mut i = 16;
+    while i + 3 <= bytes.len() {
+        let size = u16::from_le_bytes([bytes[i], bytes[i + 1]]) as usize;
+        let kind = bytes[i + 2];
+        let Some(payload) = bytes.get(i + 3..i + 3 + size) else {
+            return None; // a truncated last message: the parser reports it
+        };
+        let key = |at: usize| payload.get(at).map(|k| at + 1 + *k as usize);
+        let ok = match kind {
+            b'B' => size >= 40,
+            b'A' => size >= 3,
+            b'D' | b'R' | b'O' => size >= 2,
+            b'S' => size >= 8,
+            b'L' => size >= 9,
+            b'C' => size >= 11,
+            b'I' | b'P' => key(0).is_some_and(|end| end <= size),
+            b'M' | b'Q' => size >= 2 && key(1).is_some_and(|end| end <= size),
+            _ => true,
+        };
+        if !ok {
+            return Some((
+                i,
+                format!(
+                    "a malformed '{}' message at byte {i} (its lengths do not fit its {size} bytes)",
+                    kind as char
+                ),
+            ));
+        }
+        i += 3 + size;
+    }
+    None
+}
+
 /// Reads ULog bytes; `path` names them in messages.
 ///
 /// A file that breaks off or holds a malformed message after its definitions keeps what came
@@ -112,6 +155,8 @@ pub fn read_bytes(bytes: &[u8], path: &Path) -> Result<LogContents, LogsError> {
             "the file does not start with the ULog magic bytes".into(),
         ));
     }
+    let guard = framing_guard(bytes);
+    let bytes = &bytes[..guard.as_ref().map_or(bytes.len(), |(cut, _)| *cut)];
     let mut decoders: HashMap<u16, Option<Decoder>> = HashMap::new();
     let topics = &mut out.topics;
     let mut messages = 0usize;
@@ -162,6 +207,12 @@ pub fn read_bytes(bytes: &[u8], path: &Path) -> Result<LogContents, LogsError> {
     drop(parser);
     out.damage = match result {
         Err(e) if !in_data => return Err(corrupt(format!("in its header or definitions: {e}"))),
+        Ok(()) if !in_data && guard.is_some() => {
+            return Err(corrupt(format!(
+                "in its header or definitions: {}",
+                guard.map(|g| g.1).unwrap_or_default()
+            )));
+        }
         Err(e) => Some(format!(
             "a malformed message after {messages} good data messages ({}); the data before it is kept",
             // The parser's description ends with a debug dump of the format: keep the sentence.
@@ -181,7 +232,49 @@ pub fn read_bytes(bytes: &[u8], path: &Path) -> Result<LogContents, LogsError> {
         Ok(()) if leftover => Some(format!(
             "the file ends inside a message (truncated) after {messages} data messages; the data before it is kept"
         )),
+        Ok(()) if guard.is_some() => Some(format!(
+            "{} after {messages} good data messages; the data before it is kept",
+            guard.map(|g| g.1).unwrap_or_default()
+        )),
         Ok(()) => None,
     };
     Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn header() -> Vec<u8> {
+        let mut b = b"ULog\x01\x12\x35\x01".to_vec();
+        b.extend_from_slice(&0u64.to_le_bytes());
+        b.extend_from_slice(&40u16.to_le_bytes());
+        b.push(b'B');
+        b.extend_from_slice(&[0; 40]);
+        b
+    }
+
+    /// Regression: a parameter message whose key length points past its end panicked inside
+    /// px4-ulog 0.6.1 (a slice out of range) instead of being reported. Found by the
+    /// corrupted-log proptest.
+    #[test]
+    fn a_parameter_with_an_impossible_key_length_is_corruption_not_a_panic() {
+        let mut b = header();
+        b.extend_from_slice(&5u16.to_le_bytes());
+        b.push(b'P');
+        b.extend_from_slice(&[237, b'a', b'b', b'c', b'd']);
+        let e = read_bytes(&b, Path::new("p.ulg")).unwrap_err().to_string();
+        assert!(
+            e.contains("p.ulg") && e.contains("'P' message at byte 59"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn a_file_that_is_not_ulog_is_named() {
+        let e = read_bytes(b"hello world, not a log", Path::new("x.ulg"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("x.ulg") && e.contains("magic"), "{e}");
+    }
 }
