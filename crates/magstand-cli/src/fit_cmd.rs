@@ -88,6 +88,88 @@ pub struct FitArgs {
     /// Largest number of local models for the automatic structure.
     #[arg(long = "max-models", default_value_t = 10)]
     max_models: usize,
+    /// A flight log (needs the attitude columns): take the Earth field out first, fitted from
+    /// the log (`fit`) or from the World Magnetic Model (`wmm`, with --lat, --lon, --year), and
+    /// estimate the delay of the magnetometer behind the commands.
+    #[arg(long, value_enum)]
+    earth: Option<EarthArg>,
+    /// Latitude for --earth wmm, degrees north.
+    #[arg(long)]
+    lat: Option<f64>,
+    /// Longitude for --earth wmm, degrees east.
+    #[arg(long)]
+    lon: Option<f64>,
+    /// Altitude for --earth wmm, m.
+    #[arg(long, default_value_t = 0.0)]
+    alt_m: f64,
+    /// Date for --earth wmm, decimal year (2025.5 is mid-2025).
+    #[arg(long)]
+    year: Option<f64>,
+    /// Largest delay of the magnetometer behind the commands searched with --earth, s.
+    #[arg(long, default_value_t = 0.5)]
+    max_delay_s: f64,
+}
+
+/// Earth-field source on the command line.
+#[derive(Clone, Copy, ValueEnum)]
+pub enum EarthArg {
+    /// Fitted from the flight itself (needs turns).
+    Fit,
+    /// The World Magnetic Model at --lat, --lon, --year.
+    Wmm,
+}
+
+/// The flight preparation of `--earth`: prints what it found and returns the stand-equivalent
+/// recording.
+fn take_out_earth_field(
+    a: &FitArgs,
+    earth: EarthArg,
+    rec: &magstand_core::Recording,
+    origin: &str,
+) -> Result<magstand_core::Recording> {
+    use magstand_ident::flight::{EarthField, FlightConfig, FlightInput, prepare_flight};
+    let field = match earth {
+        EarthArg::Fit => EarthField::Fit,
+        EarthArg::Wmm => {
+            let (Some(lat), Some(lon), Some(year)) = (a.lat, a.lon, a.year) else {
+                bail!(
+                    "--earth wmm needs --lat, --lon and --year (magstand import prints them when the log has GPS)"
+                );
+            };
+            EarthField::Known(magstand_logs::earth::wmm_ned_ut(lat, lon, a.alt_m, year)?)
+        }
+    };
+    let cfg = FlightConfig {
+        earth: field,
+        input: match a.inputs {
+            InputArg::Current => FlightInput::Current,
+            _ => FlightInput::Throttle,
+        },
+        max_delay_s: a.max_delay_s,
+    };
+    let p = prepare_flight(rec, &cfg, origin)?;
+    let e = p.earth_ned_ut;
+    println!(
+        "Earth field ({}): N {:.2} E {:.2} D {:.2} uT (|e| {:.2} uT, inclination {:.1} deg); magnetometer {:.3} s behind the {}; stacked-fit residual {:.2} uT RMS; attitude: tilt up to {:.0} deg, {:.0} deg of heading covered",
+        match earth {
+            EarthArg::Fit => "fitted",
+            EarthArg::Wmm => "WMM",
+        },
+        e.x,
+        e.y,
+        e.z,
+        e.norm(),
+        e.z.atan2(e.xy().norm()).to_degrees(),
+        p.delay_s,
+        match cfg.input {
+            FlightInput::Current => "current",
+            FlightInput::Throttle => "commands",
+        },
+        p.residual_rms_ut,
+        p.attitude_span_deg.0,
+        p.attitude_span_deg.1
+    );
+    Ok(p.recording)
 }
 
 /// The fit settings the arguments describe.
@@ -182,8 +264,11 @@ pub fn print_summary(model: &Model) {
 pub fn run(a: FitArgs) -> Result<()> {
     let cfg = config(&a)?.check()?;
     files::refuse_overwriting_inputs(&[&a.recording], &[&a.model_out])?;
-    let rec = recording_csv::read(&a.recording)?;
+    let mut rec = recording_csv::read(&a.recording)?;
     let origin = a.recording.display().to_string();
+    if let Some(earth) = a.earth {
+        rec = take_out_earth_field(&a, earth, &rec, &origin)?;
+    }
     let model = cfg.fit_recording(&rec, &origin)?;
     if let Some(dir) = a.model_out.parent().filter(|d| !d.as_os_str().is_empty()) {
         files::ensure_dir(dir)?;

@@ -44,6 +44,7 @@ pub mod baseline;
 mod config;
 mod dataset;
 mod error;
+pub mod flight;
 pub mod least_squares;
 pub mod local_linear;
 pub mod methods;

@@ -33,6 +33,7 @@
 pub mod ardupilot;
 pub mod contents;
 pub mod dataflash;
+pub mod earth;
 mod error;
 pub mod export;
 pub mod import;

@@ -108,6 +108,10 @@ pub mod builtin {
             "fleet-stair",
             include_str!("../../../scenarios/fleet-stair.toml"),
         ),
+        (
+            "flight-turns",
+            include_str!("../../../scenarios/flight-turns.toml"),
+        ),
     ];
 
     /// The TOML text of a shipped scenario by name.

@@ -1,0 +1,371 @@
+//! Identification from an ordinary flight log, without a test stand.
+//!
+//! In flight the reading is the Earth field turned by the attitude, plus the constant offset
+//! of the sensor, plus the motor disturbance: `m = R^T e + b + d(u(t - delay)) + noise`, with
+//! `R` the logged attitude (body to north-east-down), `e` the Earth field in north-east-down,
+//! `b` per axis, and `u` the overall throttle or the current. With the attitude varying
+//! independently of the throttle, one stacked least squares over all three axes separates
+//! `e` (shared by the axes) from `b` and from a cubic per axis standing in for `d`; the delay
+//! of the magnetometer stream against the command stream is the one that minimizes the
+//! residual over a grid, refined by golden section.
+//!
+//! The result is a stand-equivalent recording: the Earth field's attitude dependence taken
+//! out (`m - R^T e + e`, the reading as if the vehicle sat level facing north) and the inputs
+//! moved by the delay, which the ordinary fit then models as usual. The sensor is assumed
+//! calibrated (soft iron removed), as PX4 and ArduPilot log it.
+use magstand_core::{Recording, Vec3};
+
+use crate::IdentError;
+use crate::least_squares::{NormalEquations, SolveError};
+
+/// Where the Earth field comes from.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum EarthField {
+    /// Fitted from the log itself (needs attitude changes).
+    Fit,
+    /// Known, north-east-down, µT (for example the World Magnetic Model at the log's place
+    /// and date).
+    Known(Vec3),
+}
+
+/// Which input the disturbance follows.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum FlightInput {
+    /// Overall throttle.
+    Throttle,
+    /// Supply current `bat_a`.
+    Current,
+}
+
+/// Settings of the flight preparation.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FlightConfig {
+    /// Earth field source.
+    pub earth: EarthField,
+    /// Input whose delay is estimated.
+    pub input: FlightInput,
+    /// Largest delay searched, s.
+    pub max_delay_s: f64,
+}
+
+impl Default for FlightConfig {
+    fn default() -> Self {
+        Self {
+            earth: EarthField::Fit,
+            input: FlightInput::Throttle,
+            max_delay_s: 0.5,
+        }
+    }
+}
+
+/// What the flight preparation found.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FlightPrep {
+    /// The stand-equivalent recording.
+    pub recording: Recording,
+    /// Earth field used, north-east-down, µT.
+    pub earth_ned_ut: Vec3,
+    /// Delay of the magnetometer behind the command stream, s.
+    pub delay_s: f64,
+    /// RMS residual of the stacked fit at that delay, µT.
+    pub residual_rms_ut: f64,
+    /// Largest tilt from level in the data, degrees, and the yaw range covered, degrees.
+    pub attitude_span_deg: (f64, f64),
+}
+
+/// Input column at each row, moved later by `delay_s` (linear interpolation over the rows;
+/// held at the start).
+fn delayed(t: &[f64], u: &[f64], delay_s: f64) -> Vec<f64> {
+    t.iter()
+        .map(|&x| {
+            let x = x - delay_s;
+            let i = t.partition_point(|&v| v <= x);
+            if i == 0 {
+                u[0]
+            } else if i == t.len() {
+                u[i - 1]
+            } else {
+                let f = (x - t[i - 1]) / (t[i] - t[i - 1]);
+                u[i - 1] + (u[i] - u[i - 1]) * f
+            }
+        })
+        .collect()
+}
+
+/// Regressors of the stacked fit: per axis an offset and a cubic in the input, then the
+/// Earth field (3, when fitted). The Earth field comes last so that, when the attitude does
+/// not vary, the solver names one of its columns as the dependent one.
+const PER_AXIS: usize = 4;
+
+/// Fits the stacked model at one delay; returns (Earth field, residual RMS).
+fn stacked(
+    rec: &Recording,
+    u: &[f64],
+    earth: EarthField,
+    origin: &str,
+) -> Result<(Vec3, f64), IdentError> {
+    let att = rec.attitude.as_ref().expect("checked by the caller");
+    let scale = u.iter().fold(0.0f64, |m, v| m.max(v.abs())).max(1e-12);
+    let ne = if earth == EarthField::Fit { 3 } else { 0 };
+    let p = ne + 3 * PER_AXIS;
+    let row = |r: usize, a: usize, x: &mut Vec<f64>| -> f64 {
+        // Row a of R^T: how the north, east and down components reach body axis a.
+        let rt = att[r].to_rotation_matrix().matrix().transpose();
+        x.clear();
+        x.resize(p, 0.0);
+        for j in 0..ne {
+            x[3 * PER_AXIS + j] = rt[(a, j)];
+        }
+        let q = u[r] / scale;
+        let base = a * PER_AXIS;
+        x[base] = 1.0;
+        x[base + 1] = q;
+        x[base + 2] = q * q;
+        x[base + 3] = q * q * q;
+        match earth {
+            EarthField::Fit => rec.mag_ut[r][a],
+            EarthField::Known(e) => rec.mag_ut[r][a] - (rt * e)[a],
+        }
+    };
+    let mut ne_acc = NormalEquations::new(p, 1);
+    let mut x = Vec::with_capacity(p);
+    for r in 0..rec.len() {
+        for a in 0..3 {
+            let y = row(r, a, &mut x);
+            ne_acc.add(&x, &[y], 1.0);
+        }
+    }
+    let coef = ne_acc.solve().map_err(|e| IdentError::Singular {
+        origin: origin.to_string(),
+        what: "Earth field and motor disturbance of a flight".into(),
+        why: match e {
+            SolveError::NoData => "no rows".into(),
+            SolveError::Singular { column, .. } if column >= 3 * PER_AXIS => {
+                "the attitude does not vary enough to tell the Earth field from the sensor offset (fly turns, or give the Earth field with --earth wmm)".into()
+            }
+            SolveError::Singular { .. } => {
+                "the input does not vary enough (fewer than four distinct levels)".into()
+            }
+        },
+    })?;
+    let mut sse = 0.0;
+    for r in 0..rec.len() {
+        for a in 0..3 {
+            let y = row(r, a, &mut x);
+            let fit: f64 = x
+                .iter()
+                .zip(coef.column(0).iter())
+                .map(|(a, b)| a * b)
+                .sum();
+            sse += (y - fit).powi(2);
+        }
+    }
+    let e = match earth {
+        EarthField::Fit => Vec3::from_fn(|j, _| coef[(3 * PER_AXIS + j, 0)]),
+        EarthField::Known(e) => e,
+    };
+    Ok((e, (sse / (3 * rec.len()) as f64).sqrt()))
+}
+
+/// Takes the Earth field out of a flight recording and estimates the stream delay.
+pub fn prepare_flight(
+    rec: &Recording,
+    cfg: &FlightConfig,
+    origin: &str,
+) -> Result<FlightPrep, IdentError> {
+    let data = |message: String| IdentError::Data {
+        origin: origin.to_string(),
+        message,
+    };
+    if !(cfg.max_delay_s.is_finite() && (0.0..=10.0).contains(&cfg.max_delay_s)) {
+        return Err(IdentError::InvalidSetting {
+            key: "max-delay-s".into(),
+            value: cfg.max_delay_s.to_string(),
+            expected: "0..10 s".into(),
+        });
+    }
+    if let EarthField::Known(e) = cfg.earth
+        && !(e.iter().all(|v| v.is_finite()) && e.norm() > 1.0)
+    {
+        return Err(IdentError::InvalidSetting {
+            key: "earth".into(),
+            value: format!("{e:?}"),
+            expected: "a finite Earth field of more than 1 µT".into(),
+        });
+    }
+    let att = rec.attitude.as_ref().ok_or_else(|| {
+        data("a flight needs the attitude columns att_qw, att_qx, att_qy, att_qz (magstand import writes them)".into())
+    })?;
+    if rec.len() < 20 {
+        return Err(data(format!(
+            "{} rows; a flight fit needs at least 20",
+            rec.len()
+        )));
+    }
+    let u: Vec<f64> = match cfg.input {
+        FlightInput::Throttle => rec.overall_throttle_column(),
+        FlightInput::Current => rec
+            .bat_a
+            .clone()
+            .ok_or_else(|| data("--inputs current needs the bat_a column".into()))?,
+    };
+    let rss_at = |d: f64| -> Result<(Vec3, f64), IdentError> {
+        stacked(rec, &delayed(&rec.t_s, &u, d), cfg.earth, origin)
+    };
+    // Grid over the delay, then golden section around the best grid point.
+    let dt = rec.mean_interval_s().max(1e-6);
+    let steps = ((cfg.max_delay_s / (dt / 2.0)).ceil() as usize).clamp(1, 60);
+    let mut best = (0.0, rss_at(0.0)?);
+    for k in 1..=steps {
+        let d = cfg.max_delay_s * k as f64 / steps as f64;
+        let r = rss_at(d)?;
+        if r.1 < best.1.1 {
+            best = (d, r);
+        }
+    }
+    let h = cfg.max_delay_s / steps as f64;
+    let (mut lo, mut hi) = ((best.0 - h).max(0.0), (best.0 + h).min(cfg.max_delay_s));
+    let g = 0.5 * (5f64.sqrt() - 1.0);
+    for _ in 0..20 {
+        if hi - lo < 1e-4 {
+            break;
+        }
+        let (a, b) = (hi - g * (hi - lo), lo + g * (hi - lo));
+        if rss_at(a)?.1 < rss_at(b)?.1 {
+            hi = b;
+        } else {
+            lo = a;
+        }
+    }
+    let mid = 0.5 * (lo + hi);
+    let r = rss_at(mid)?;
+    if r.1 < best.1.1 {
+        best = (mid, r);
+    }
+    let (delay_s, (earth, rms)) = best;
+
+    let mut out = rec.clone();
+    for m in out.thr.iter_mut() {
+        *m = delayed(&rec.t_s, m, delay_s)
+            .into_iter()
+            .map(|v| v.clamp(0.0, 1.0))
+            .collect();
+    }
+    if let Some(a) = out.bat_a.as_mut() {
+        *a = delayed(&rec.t_s, a, delay_s);
+    }
+    if let Some(v) = out.bat_v.as_mut() {
+        *v = delayed(&rec.t_s, v, delay_s);
+    }
+    for (r, m) in out.mag_ut.iter_mut().enumerate() {
+        *m += earth - att[r].inverse() * earth;
+    }
+    if let Some(g) = out.truth.as_mut() {
+        for (r, f) in g.field_ut.iter_mut().enumerate() {
+            *f += earth - att[r].inverse() * earth;
+        }
+    }
+    let tilt = att
+        .iter()
+        .map(|q| (q * Vec3::z()).angle(&Vec3::z()).to_degrees())
+        .fold(0.0, f64::max);
+    let yaws: Vec<f64> = att
+        .iter()
+        .map(|q| q.euler_angles().2.to_degrees())
+        .collect();
+    let yaw_span = yaw_coverage_deg(&yaws);
+    Ok(FlightPrep {
+        recording: out,
+        earth_ned_ut: earth,
+        delay_s,
+        residual_rms_ut: rms,
+        attitude_span_deg: (tilt, yaw_span),
+    })
+}
+
+/// Degrees of the compass rose covered by a set of headings (360 minus the largest gap).
+fn yaw_coverage_deg(yaws: &[f64]) -> f64 {
+    if yaws.is_empty() {
+        return 0.0;
+    }
+    let mut v: Vec<f64> = yaws.iter().map(|y| y.rem_euclid(360.0)).collect();
+    v.sort_by(f64::total_cmp);
+    let mut gap = 360.0 - (v[v.len() - 1] - v[0]);
+    for w in v.windows(2) {
+        gap = f64::max(gap, w[1] - w[0]);
+    }
+    360.0 - gap
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use magstand_core::Quat;
+
+    /// A synthetic flight: yawing and tilting, a known Earth field, an offset and a quadratic
+    /// disturbance in a throttle that moves independently of the attitude, seen 0.1 s late.
+    fn flight(delay_s: f64) -> (Recording, Vec3) {
+        let earth = Vec3::new(20.0, 2.0, 45.0);
+        let b = Vec3::new(3.0, -4.0, 6.0);
+        let n = 1200;
+        let thr = |t: f64| 0.4 + 0.3 * (0.9 * t).sin() * (0.31 * t).cos();
+        let mut rec = Recording {
+            thr: vec![Vec::new()],
+            attitude: Some(Vec::new()),
+            ..Recording::default()
+        };
+        for k in 0..n {
+            let t = k as f64 * 0.05;
+            let q =
+                Quat::from_euler_angles(0.3 * (0.2 * t).sin(), 0.25 * (0.13 * t).cos(), 0.1 * t);
+            let u = thr(t - delay_s);
+            let d = Vec3::new(8.0 * u * u, -5.0 * u, 12.0 * u * u);
+            rec.t_s.push(t);
+            rec.thr[0].push(thr(t));
+            rec.mag_ut.push(q.inverse() * earth + b + d);
+            rec.attitude.as_mut().unwrap().push(q);
+        }
+        (rec, earth)
+    }
+
+    #[test]
+    fn recovers_earth_field_and_delay_from_a_noiseless_flight() {
+        let (rec, earth) = flight(0.1);
+        let p = prepare_flight(&rec, &FlightConfig::default(), "synthetic").unwrap();
+        assert!(
+            (p.earth_ned_ut - earth).norm() < 0.05,
+            "{:?}",
+            p.earth_ned_ut
+        );
+        assert!((p.delay_s - 0.1).abs() < 0.01, "{}", p.delay_s);
+        // The stand-equivalent reading no longer depends on the attitude: it is e + b + d.
+        let u = p.recording.thr[0][600];
+        let expect =
+            earth + Vec3::new(3.0, -4.0, 6.0) + Vec3::new(8.0 * u * u, -5.0 * u, 12.0 * u * u);
+        assert!(
+            (p.recording.mag_ut[600] - expect).norm() < 0.1,
+            "{:?} vs {expect:?}",
+            p.recording.mag_ut[600]
+        );
+    }
+
+    #[test]
+    fn a_flight_without_turns_cannot_fit_the_earth_field() {
+        let (mut rec, _) = flight(0.0);
+        for q in rec.attitude.as_mut().unwrap() {
+            *q = Quat::identity();
+        }
+        let e = prepare_flight(&rec, &FlightConfig::default(), "still.csv")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("still.csv") && e.contains("attitude does not vary"),
+            "{e}"
+        );
+        let known = FlightConfig {
+            earth: EarthField::Known(Vec3::new(20.0, 2.0, 45.0)),
+            ..FlightConfig::default()
+        };
+        assert!(prepare_flight(&rec, &known, "still.csv").is_ok());
+    }
+}
