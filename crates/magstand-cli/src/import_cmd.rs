@@ -5,7 +5,8 @@ use anyhow::{Context, Result, bail};
 use clap::Args;
 
 use crate::files;
-use magstand_logs::import::{ImportOptions, SegmentKind, import_file};
+use magstand_logs::contents::LogFormat;
+use magstand_logs::import::{ImportOptions, SegmentKind, import_bytes};
 
 /// Arguments of `magstand import`.
 #[derive(Args)]
@@ -73,9 +74,12 @@ pub fn run(a: ImportArgs) -> Result<()> {
     {
         bail!("--from-s {f} --to-s {t}: the window is empty");
     }
-    let head = std::fs::read(path).with_context(|| format!("{}: cannot read", path.display()))?;
-    let is_ulog = head.starts_with(b"ULog");
-    if is_ulog != expect_ulog && (is_ulog || head.starts_with(&[0xA3, 0x95])) {
+    // Read once: the format check and the import share the bytes.
+    let bytes = std::fs::read(path).with_context(|| format!("{}: cannot read", path.display()))?;
+    if let Some(found) = LogFormat::detect(&bytes)
+        && (found == LogFormat::Ulog) != expect_ulog
+    {
+        let is_ulog = found == LogFormat::Ulog;
         bail!(
             "{}: this is a {} log; use {}",
             path.display(),
@@ -83,7 +87,6 @@ pub fn run(a: ImportArgs) -> Result<()> {
             if is_ulog { "--ulog" } else { "--dataflash" }
         );
     }
-    drop(head);
     let opts = ImportOptions {
         mag: a.mag,
         motors: a.motors,
@@ -95,7 +98,8 @@ pub fn run(a: ImportArgs) -> Result<()> {
             (f, t) => Some((f.unwrap_or(f64::NEG_INFINITY), t.unwrap_or(f64::INFINITY))),
         },
     };
-    let (rec, report) = import_file(path, &opts)?;
+    let (rec, report) = import_bytes(&bytes, path, &opts)?;
+    drop(bytes);
     if let Some(dir) = a.out.parent().filter(|d| !d.as_os_str().is_empty()) {
         files::ensure_dir(dir)?;
     }

@@ -53,6 +53,18 @@ pub enum LogFormat {
 }
 
 impl LogFormat {
+    /// The format of log bytes, recognized by their first bytes (ULog's magic, a DataFlash
+    /// message header).
+    pub fn detect(bytes: &[u8]) -> Option<Self> {
+        if bytes.starts_with(b"ULog") {
+            Some(LogFormat::Ulog)
+        } else if bytes.starts_with(&[0xA3, 0x95]) {
+            Some(LogFormat::DataFlash)
+        } else {
+            None
+        }
+    }
+
     /// Its usual name.
     pub fn name(self) -> &'static str {
         match self {

@@ -20,15 +20,6 @@ pub const MESSAGES: [&str; 9] = [
 const MAGIC: [u8; 2] = [0xA3, 0x95];
 const FMT_TYPE: u8 = 0x80;
 
-/// Reads a DataFlash file.
-pub fn read_file(path: &Path) -> Result<LogContents, LogsError> {
-    let bytes = std::fs::read(path).map_err(|source| LogsError::Io {
-        path: path.to_path_buf(),
-        source,
-    })?;
-    read_bytes(&bytes, path)
-}
-
 /// Blanks the header of every FMT message that declares a length below 3 bytes; returns how
 /// many there were.
 fn sanitize(bytes: &mut [u8]) -> usize {

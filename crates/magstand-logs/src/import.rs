@@ -183,16 +183,17 @@ pub fn import_bytes(
     path: &Path,
     opts: &ImportOptions,
 ) -> Result<(Recording, ImportReport), LogsError> {
-    let log = if bytes.starts_with(b"ULog") {
-        crate::ulog::read_bytes(bytes, path)?
-    } else if bytes.starts_with(&[0xA3, 0x95]) {
-        crate::dataflash::read_bytes(bytes, path)?
-    } else {
-        return Err(LogsError::Corrupt {
-            path: path.to_path_buf(),
-            format: "ULog or DataFlash",
-            what: "the file starts with neither the ULog magic bytes nor a DataFlash header".into(),
-        });
+    let log = match LogFormat::detect(bytes) {
+        Some(LogFormat::Ulog) => crate::ulog::read_bytes(bytes, path)?,
+        Some(LogFormat::DataFlash) => crate::dataflash::read_bytes(bytes, path)?,
+        None => {
+            return Err(LogsError::Corrupt {
+                path: path.to_path_buf(),
+                format: "ULog or DataFlash",
+                what: "the file starts with neither the ULog magic bytes nor a DataFlash header"
+                    .into(),
+            });
+        }
     };
     import(&log, opts)
 }

@@ -33,15 +33,6 @@ pub const TOPICS: [&str; 13] = [
     "vehicle_global_position",
 ];
 
-/// Reads a ULog file.
-pub fn read_file(path: &Path) -> Result<LogContents, LogsError> {
-    let bytes = std::fs::read(path).map_err(|source| LogsError::Io {
-        path: path.to_path_buf(),
-        source,
-    })?;
-    read_bytes(&bytes, path)
-}
-
 /// How one logged message format is decoded: its numeric fields and where its time is.
 struct Decoder {
     name: String,
