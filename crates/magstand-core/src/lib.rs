@@ -7,6 +7,7 @@
 //! * [`rbf`]: normalized Gaussian radial basis functions and the blended local linear form of
 //!   Czyba, Janusz and Szafranski (eq. 12-14), used by the simulator's paper-table disturbance
 //!   and by the identification crate.
+//! * [`interpolation`]: a sampled column read between its samples, held at its ends.
 //! * [`atomic_file`]: write-then-rename output so that no half-written file is ever left behind.
 //!
 //! # Example
@@ -23,6 +24,7 @@
 
 pub mod atomic_file;
 mod error;
+pub mod interpolation;
 pub mod rbf;
 mod recording;
 pub mod recording_csv;

@@ -13,6 +13,7 @@
 //! out (`m - R^T e + e`, the reading as if the vehicle sat level facing north) and the inputs
 //! moved by the delay, which the ordinary fit then models as usual. The sensor is assumed
 //! calibrated (soft iron removed), as PX4 and ArduPilot log it.
+use magstand_core::interpolation::{interpolate, locate};
 use magstand_core::{Recording, Vec3};
 
 use crate::IdentError;
@@ -77,18 +78,7 @@ pub struct FlightPrep {
 /// held at the start).
 fn delayed(t: &[f64], u: &[f64], delay_s: f64) -> Vec<f64> {
     t.iter()
-        .map(|&x| {
-            let x = x - delay_s;
-            let i = t.partition_point(|&v| v <= x);
-            if i == 0 {
-                u[0]
-            } else if i == t.len() {
-                u[i - 1]
-            } else {
-                let f = (x - t[i - 1]) / (t[i] - t[i - 1]);
-                u[i - 1] + (u[i] - u[i - 1]) * f
-            }
-        })
+        .map(|&x| interpolate(u, locate(t, x - delay_s)))
         .collect()
 }
 

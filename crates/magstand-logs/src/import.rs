@@ -6,6 +6,7 @@
 use std::fmt::Write as _;
 use std::path::Path;
 
+use magstand_core::interpolation::{interpolate, locate};
 use magstand_core::{Quat, Recording};
 
 use crate::LogsError;
@@ -276,29 +277,17 @@ fn lerp(a: f64, b: f64, f: f64) -> f64 {
 
 /// Value of a scalar stream at `x`, interpolated inside and held at its ends.
 fn at_scalar(s: &Stream<f64>, x: f64) -> f64 {
-    let i = s.t_s.partition_point(|&v| v <= x);
-    if i == 0 {
-        return s.values[0];
-    }
-    if i == s.len() {
-        return s.values[i - 1];
-    }
-    let f = (x - s.t_s[i - 1]) / (s.t_s[i] - s.t_s[i - 1]);
-    lerp(s.values[i - 1], s.values[i], f)
+    interpolate(&s.values, locate(&s.t_s, x))
 }
 
+/// Attitude at `x`: slerp inside, held at the ends.
 fn at_quat(s: &Stream<Quat>, x: f64) -> Quat {
-    let i = s.t_s.partition_point(|&v| v <= x);
-    if i == 0 {
-        return s.values[0];
+    match locate(&s.t_s, x) {
+        (k, 0.0) => s.values[k],
+        (k, f) => s.values[k]
+            .try_slerp(&s.values[k + 1], f, 1e-9)
+            .unwrap_or(s.values[k]),
     }
-    if i == s.len() {
-        return s.values[i - 1];
-    }
-    let f = (x - s.t_s[i - 1]) / (s.t_s[i] - s.t_s[i - 1]);
-    s.values[i - 1]
-        .try_slerp(&s.values[i], f, 1e-9)
-        .unwrap_or(s.values[i - 1])
 }
 
 /// State at `x`: the last change at or before it, `before` until the first.

@@ -15,6 +15,7 @@ use crate::hysteresis::HysteresisState;
 use crate::motor::MotorState;
 use crate::thermal::ThermalState;
 use magstand_core::Vec3;
+use magstand_core::interpolation::{interpolate, locate};
 
 /// Longest substep, s: short against the supply's and the board's time constants.
 const MAX_SUBSTEP_S: f64 = 0.01;
@@ -174,20 +175,7 @@ impl Trace {
     /// logged `delay_s` late sees.
     pub fn delay(&mut self, delay_s: f64) {
         let t = &self.t_s;
-        let at: Vec<(usize, f64)> = t
-            .iter()
-            .map(|&ti| {
-                let target = ti - delay_s;
-                let k = t.partition_point(|&x| x <= target);
-                if k == 0 {
-                    (0, 0.0)
-                } else if k >= t.len() {
-                    (t.len() - 1, 0.0)
-                } else {
-                    (k - 1, (target - t[k - 1]) / (t[k] - t[k - 1]))
-                }
-            })
-            .collect();
+        let at: Vec<(usize, f64)> = t.iter().map(|&ti| locate(t, ti - delay_s)).collect();
         for m in 0..self.speed.len() {
             shift(&mut self.speed[m], &at);
             shift(&mut self.driven[m], &at);
@@ -210,12 +198,8 @@ where
         + std::ops::Mul<f64, Output = T>,
 {
     let old = col.to_vec();
-    for (v, &(k, f)) in col.iter_mut().zip(at) {
-        *v = if f == 0.0 {
-            old[k]
-        } else {
-            old[k] + (old[k + 1] - old[k]) * f
-        };
+    for (v, &place) in col.iter_mut().zip(at) {
+        *v = interpolate(&old, place);
     }
 }
 
