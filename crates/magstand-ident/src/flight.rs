@@ -15,6 +15,7 @@
 //! calibrated (soft iron removed), as PX4 and ArduPilot log it.
 use magstand_core::interpolation::{interpolate, locate};
 use magstand_core::{Recording, Vec3};
+use nalgebra::Matrix3;
 
 use crate::IdentError;
 use crate::least_squares::{NormalEquations, SolveError};
@@ -88,19 +89,21 @@ fn delayed(t: &[f64], u: &[f64], delay_s: f64) -> Vec<f64> {
 const PER_AXIS: usize = 4;
 
 /// Fits the stacked model at one delay; returns (Earth field, residual RMS).
+/// `to_body[r]` is the rotation from north-east-down to the body frame at row `r` (R^T),
+/// computed once for every delay tried.
 fn stacked(
     rec: &Recording,
+    to_body: &[Matrix3<f64>],
     u: &[f64],
     earth: EarthField,
     origin: &str,
 ) -> Result<(Vec3, f64), IdentError> {
-    let att = rec.attitude.as_ref().expect("checked by the caller");
     let scale = u.iter().fold(0.0f64, |m, v| m.max(v.abs())).max(1e-12);
     let ne = if earth == EarthField::Fit { 3 } else { 0 };
     let p = ne + 3 * PER_AXIS;
     let row = |r: usize, a: usize, x: &mut Vec<f64>| -> f64 {
         // Row a of R^T: how the north, east and down components reach body axis a.
-        let rt = att[r].to_rotation_matrix().matrix().transpose();
+        let rt = &to_body[r];
         x.clear();
         x.resize(p, 0.0);
         for j in 0..ne {
@@ -199,8 +202,12 @@ pub fn prepare_flight(
             .clone()
             .ok_or_else(|| data("--inputs current needs the bat_a column".into()))?,
     };
+    let to_body: Vec<Matrix3<f64>> = att
+        .iter()
+        .map(|q| q.to_rotation_matrix().matrix().transpose())
+        .collect();
     let rss_at = |d: f64| -> Result<(Vec3, f64), IdentError> {
-        stacked(rec, &delayed(&rec.t_s, &u, d), cfg.earth, origin)
+        stacked(rec, &to_body, &delayed(&rec.t_s, &u, d), cfg.earth, origin)
     };
     // Grid over the delay, then golden section around the best grid point.
     let dt = rec.mean_interval_s().max(1e-6);
