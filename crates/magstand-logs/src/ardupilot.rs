@@ -12,7 +12,7 @@
 use magstand_core::{Quat, Vec3};
 
 use crate::LogsError;
-use crate::contents::{LogContents, Series};
+use crate::contents::LogContents;
 use crate::import::ImportOptions;
 use crate::streams::{Position, Stream, VehicleStreams, decimal_year, normalize_output};
 
@@ -28,8 +28,11 @@ pub fn streams(log: &LogContents, opts: &ImportOptions) -> Result<VehicleStreams
         None => (log.series("CURR", 0), 0.01),
     };
     if let Some(b) = bat {
-        out.bat_v = scaled(b, "Volt", scale).filter(|s| s.values.iter().any(|v| *v > 0.5));
-        out.bat_a = scaled(b, "Curr", scale);
+        let scaled = |x: f64| x.is_finite().then_some(x * scale);
+        out.bat_v = b
+            .stream("Volt", scaled)
+            .filter(|s| s.values.iter().any(|v| *v > 0.5));
+        out.bat_a = b.stream("Curr", scaled);
     }
     if let Some(a) = log.series("ATT", 0)
         && let (Some(r), Some(p), Some(y)) = (a.field("Roll"), a.field("Pitch"), a.field("Yaw"))
@@ -56,16 +59,6 @@ pub fn streams(log: &LogContents, opts: &ImportOptions) -> Result<VehicleStreams
     out.landed = events(18, 28);
     out.position = position(log);
     Ok(out)
-}
-
-fn scaled(s: &Series, field: &str, scale: f64) -> Option<Stream<f64>> {
-    let v = s.field(field)?;
-    Some(Stream::from_pairs(
-        s.t_s
-            .iter()
-            .zip(v)
-            .map(|(&t, &x)| (t, x.is_finite().then_some(x * scale))),
-    ))
 }
 
 fn magnetometer(

@@ -3,6 +3,8 @@
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 
+use crate::streams::Stream;
+
 /// One topic instance: a time stamp per message and a column per numeric field.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct Series {
@@ -16,6 +18,15 @@ impl Series {
     /// A field's values, if the topic has it.
     pub fn field(&self, name: &str) -> Option<&[f64]> {
         self.fields.get(name).map(|v| v.as_slice())
+    }
+
+    /// One field as a stream, each value mapped by `map` (`None` drops that message); `None`
+    /// when the topic has no such field.
+    pub fn stream<T>(&self, field: &str, map: impl Fn(f64) -> Option<T>) -> Option<Stream<T>> {
+        let v = self.field(field)?;
+        Some(Stream::from_pairs(
+            self.t_s.iter().zip(v).map(|(&t, &x)| (t, map(x))),
+        ))
     }
 
     /// Number of messages.

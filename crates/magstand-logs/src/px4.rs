@@ -65,35 +65,23 @@ pub fn streams(log: &LogContents, opts: &ImportOptions) -> Result<VehicleStreams
     }
     out.armed = log
         .series("actuator_armed", 0)
-        .and_then(|s| flag(s, "armed", |v| v != 0.0))
+        .and_then(|s| s.stream("armed", |v| Some(v != 0.0)))
         .or_else(|| {
             // vehicle_status.arming_state 2 is ARMED.
             log.series("vehicle_status", 0)
-                .and_then(|s| flag(s, "arming_state", |v| v == 2.0))
+                .and_then(|s| s.stream("arming_state", |v| Some(v == 2.0)))
         });
     out.landed = log
         .series("vehicle_land_detected", 0)
-        .and_then(|s| flag(s, "landed", |v| v != 0.0));
+        .and_then(|s| s.stream("landed", |v| Some(v != 0.0)));
     out.position = position(log);
     Ok(out)
 }
 
+/// A finite, valid scalar field as a stream; `None` when no message has one.
 fn scalar(s: &Series, field: &str, valid: impl Fn(f64) -> bool) -> Option<Stream<f64>> {
-    let v = s.field(field)?;
-    let st = Stream::from_pairs(
-        s.t_s
-            .iter()
-            .zip(v)
-            .map(|(&t, &x)| (t, (x.is_finite() && valid(x)).then_some(x))),
-    );
-    (!st.is_empty()).then_some(st)
-}
-
-fn flag(s: &Series, field: &str, on: impl Fn(f64) -> bool) -> Option<Stream<bool>> {
-    let v = s.field(field)?;
-    Some(Stream::from_pairs(
-        s.t_s.iter().zip(v).map(|(&t, &x)| (t, Some(on(x)))),
-    ))
+    s.stream(field, |x| (x.is_finite() && valid(x)).then_some(x))
+        .filter(|st| !st.is_empty())
 }
 
 fn magnetometer(
