@@ -222,14 +222,20 @@ mod tests {
         record_power = true
     "#;
 
-    #[test]
-    fn replay_matches_the_full_simulation_of_the_same_commands() {
+    /// The stair simulated (seed 3) and its commands replayed.
+    fn stair_and_replay() -> (magstand_core::Recording, Trace) {
         let s = Scenario::from_toml_str(STAIR, "t")
             .unwrap()
             .check("t", None)
             .unwrap();
         let rec = simulate(&s, 3);
         let tr = replay(s.params(), &rec.t_s, &rec.thr, None, 0.0);
+        (rec, tr)
+    }
+
+    #[test]
+    fn replay_matches_the_full_simulation_of_the_same_commands() {
+        let (rec, tr) = stair_and_replay();
         let (a, v) = (rec.bat_a.clone().unwrap(), rec.bat_v.clone().unwrap());
         for r in 0..rec.len() {
             assert!(
@@ -244,12 +250,7 @@ mod tests {
 
     #[test]
     fn delay_shifts_the_trace_by_whole_and_partial_rows() {
-        let s = Scenario::from_toml_str(STAIR, "t")
-            .unwrap()
-            .check("t", None)
-            .unwrap();
-        let rec = simulate(&s, 3);
-        let tr = replay(s.params(), &rec.t_s, &rec.thr, None, 0.0);
+        let (_, tr) = stair_and_replay();
         let mut late = tr.clone();
         late.delay(0.03); // one and a half rows at 50 Hz
         for r in 2..tr.len() {
