@@ -1,4 +1,5 @@
-//! `magstand export`: a model as PX4 or ArduPilot parameters, or as a C header.
+//! `magstand export`: a model as PX4 or ArduPilot parameters, as firmware code (C header or
+//! `no_std` Rust module), or as a JSON document for other tools.
 use std::io::Write;
 use std::path::PathBuf;
 
@@ -6,20 +7,40 @@ use anyhow::{Result, bail};
 use clap::{Args, ValueEnum};
 
 use crate::files;
-use magstand_ident::Model;
+use magstand_core::recording_csv;
+use magstand_ident::{InputKind, Model};
+use magstand_logs::export::json::export_json;
+use magstand_logs::export::per_motor::{describe_per_motor, per_motor_fit, per_motor_params};
 use magstand_logs::export::{
-    ardupilot_params, c_header, describe, linear_approximation, px4_params,
+    LineInput, Span, ardupilot_params, c_header, describe, linear_approximation, px4_params,
+    rust_module,
 };
 
 /// What to export to.
-#[derive(Clone, Copy, ValueEnum)]
+#[derive(Clone, Copy, PartialEq, ValueEnum)]
 enum Target {
     /// PX4 power compensation (CAL_MAG_COMP_TYP, CAL_MAGn_{X,Y,Z}COMP), QGroundControl format.
     Px4,
     /// ArduPilot compassmot (COMPASS_MOTCT, COMPASS_MOT_{X,Y,Z}), .param format.
     Ardupilot,
+    /// ArduPilot per-motor compensation (COMPASS_PMOT*): needs a per-motor model and
+    /// --recording with bat_v.
+    ArdupilotPerMotor,
     /// The full model as a dependency-free C header.
     C,
+    /// The full model as a no_std Rust module.
+    Rust,
+    /// A table of the full model and every exported figure, as JSON.
+    Json,
+}
+
+/// The line's input on the command line.
+#[derive(Clone, Copy, ValueEnum)]
+enum InputArg {
+    /// Overall throttle, 0..1.
+    Throttle,
+    /// Battery current, A.
+    Current,
 }
 
 /// Arguments of `magstand export`.
@@ -31,6 +52,14 @@ pub struct ExportArgs {
     /// Target.
     #[arg(long = "to", value_enum)]
     target: Target,
+    /// What the autopilot's line multiplies (default: the model's own input). A different one
+    /// needs --recording.
+    #[arg(long, value_enum)]
+    input: Option<InputArg>,
+    /// A recording the model applies to: the line is fitted over its rows (the way the vehicle
+    /// was flown) rather than evenly over the input range.
+    #[arg(long)]
+    recording: Option<PathBuf>,
     /// Magnetometer instance: PX4's n in CAL_MAGn (from 0), ArduPilot's compass (from 1).
     #[arg(long)]
     instance: Option<usize>,
@@ -42,26 +71,78 @@ pub struct ExportArgs {
 /// Runs `magstand export`.
 pub fn run(a: ExportArgs) -> Result<()> {
     if let Some(o) = &a.out {
-        files::refuse_overwriting_inputs(&[&a.model], &[o])?;
+        let mut inputs = vec![a.model.as_path()];
+        inputs.extend(a.recording.as_deref());
+        files::refuse_overwriting_inputs(&inputs, &[o])?;
     }
     let model = Model::load(&a.model)?;
+    let recording = a.recording.as_ref().map(recording_csv::read).transpose()?;
+    let origin = a
+        .recording
+        .as_ref()
+        .map(|p| p.display().to_string())
+        .unwrap_or_default();
+    let span = match &recording {
+        Some(r) => Span::Rows {
+            recording: r,
+            origin: &origin,
+        },
+        None => Span::ModelRange,
+    };
+    let input = match a.input {
+        Some(InputArg::Throttle) => LineInput::Throttle,
+        Some(InputArg::Current) => LineInput::Current,
+        None => LineInput::of(&model),
+    };
+    if a.input.is_some() && matches!(a.target, Target::C | Target::Rust) {
+        bail!(
+            "--input chooses the autopilot line's input; the firmware exports take the model's own input ({:?})",
+            model.input.kind
+        );
+    }
+    // What the autopilot forms cost goes to stderr, so stdout stays a clean file.
     let text = match a.target {
         Target::C => c_header(&model)?,
-        Target::Px4 | Target::Ardupilot => {
-            let line = linear_approximation(&model)?;
-            // What the autopilot's linear form costs goes to stderr, so stdout stays a clean
-            // parameter file.
+        Target::Rust => rust_module(&model)?,
+        Target::Px4 => {
+            let line = linear_approximation(&model, input, span)?;
             eprint!("{}", describe(&line));
-            match a.target {
-                Target::Px4 => px4_params(&line, a.instance.unwrap_or(0)),
-                _ => {
-                    let i = a.instance.unwrap_or(1);
-                    if !(1..=3).contains(&i) {
-                        bail!("--instance {i}: ArduPilot compasses are numbered 1 to 3");
-                    }
-                    ardupilot_params(&line, i)
-                }
+            px4_params(&line, a.instance.unwrap_or(0))
+        }
+        Target::Ardupilot => {
+            let line = linear_approximation(&model, input, span)?;
+            eprint!("{}", describe(&line));
+            let i = a.instance.unwrap_or(1);
+            if !(1..=3).contains(&i) {
+                bail!("--instance {i}: ArduPilot compasses are numbered 1 to 3");
             }
+            ardupilot_params(&line, i)
+        }
+        Target::ArdupilotPerMotor => {
+            let Some(rec) = &recording else {
+                bail!(
+                    "--to ardupilot-per-motor fits each motor's coefficient over a recording: give --recording R.csv (with bat_v and spans where the motors differ)"
+                );
+            };
+            if a.instance.is_some_and(|i| i != 1) {
+                bail!(
+                    "ArduPilot applies per-motor compensation to the first compass only; drop --instance or give 1"
+                );
+            }
+            let fit = per_motor_fit(&model, rec, &origin)?;
+            eprint!("{}", describe_per_motor(&fit));
+            per_motor_params(&fit)
+        }
+        Target::Json => {
+            let line = linear_approximation(&model, input, span)?;
+            eprint!("{}", describe(&line));
+            let per_motor = match &recording {
+                Some(rec) if model.input.kind == InputKind::Motors && rec.bat_v.is_some() => {
+                    Some(per_motor_fit(&model, rec, &origin)?)
+                }
+                _ => None,
+            };
+            export_json(&model, &line, per_motor.as_ref())?
         }
     };
     match &a.out {

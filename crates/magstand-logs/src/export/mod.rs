@@ -1,0 +1,326 @@
+//! A model as the parameters an autopilot loads, and as code for one's own firmware.
+//!
+//! PX4 and ArduPilot both correct with a straight line through the origin, per axis:
+//! `m_corrected = m + C * p`, where `p` is the throttle (0..1) or the battery current. So the
+//! exported coefficient is minus the fitted slope. The slope is the least-squares line through
+//! the origin to the full model, fitted either over the model's recorded input range (evenly
+//! spaced points from zero to the largest recorded input) or, given a recording, over its rows
+//! (so the line is weighted the way the vehicle was actually flown, and a throttle model can be
+//! exported per ampere and a current model per unit throttle). [`LinearFit`] says what the line
+//! leaves: the RMS of the model minus the line, and the worst apparent heading error it causes
+//! on the model's own motors-off field.
+//!
+//! Units: PX4 `CAL_MAGn_{X,Y,Z}COMP` in gauss per unit throttle (`CAL_MAG_COMP_TYP` 1) or
+//! gauss per kiloampere (`CAL_MAG_COMP_TYP` 2); ArduPilot `COMPASS_MOT_{X,Y,Z}` in milligauss
+//! per unit throttle (`COMPASS_MOTCT` 1) or per ampere (`COMPASS_MOTCT` 2). 1 µT = 10 mG =
+//! 0.01 G. Both apply the correction in the sensor frame before the board rotation; a model
+//! fitted on body-frame data matches when the sensor is mounted without rotation.
+//!
+//! The other targets: [`per_motor`] (ArduPilot's `COMPASS_PMOT*`), [`firmware`] (the full
+//! model as a C header or a `no_std` Rust module) and [`json`] (a table and every figure, for
+//! other tools).
+use magstand_core::{AXES, Recording, Vec3};
+use magstand_ident::metrics::{heading_deg, heading_difference_deg};
+use magstand_ident::{InputKind, Model};
+
+use crate::LogsError;
+
+pub mod firmware;
+pub mod json;
+pub mod per_motor;
+
+pub use firmware::{c_header, rust_module};
+
+/// Points over the recorded range at which the line is fitted and judged.
+const GRID: usize = 201;
+
+/// The field ArduPilot's compassmot divides by for its interference percentage: its expected
+/// Earth-field strength, 530 mG (`AP_ARMING_COMPASS_MAGFIELD_EXPECTED`), in µT.
+pub const ARDUPILOT_EXPECTED_FIELD_UT: f64 = 53.0;
+
+/// What the autopilot's line multiplies.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum LineInput {
+    /// Overall throttle, 0..1 (PX4 `CAL_MAG_COMP_TYP` 1, ArduPilot `COMPASS_MOTCT` 1).
+    Throttle,
+    /// Battery current, A (PX4 `CAL_MAG_COMP_TYP` 2, ArduPilot `COMPASS_MOTCT` 2).
+    Current,
+}
+
+impl LineInput {
+    /// The input a model is fitted on, as a line input (a per-motor model's is the throttle).
+    pub fn of(model: &Model) -> Self {
+        match model.input.kind {
+            InputKind::Current => LineInput::Current,
+            InputKind::Throttle | InputKind::Motors => LineInput::Throttle,
+        }
+    }
+
+    fn unit(self) -> &'static str {
+        match self {
+            LineInput::Current => "uT/A",
+            LineInput::Throttle => "uT per unit throttle",
+        }
+    }
+}
+
+/// Where the line is fitted and judged.
+#[derive(Clone, Copy)]
+pub enum Span<'a> {
+    /// Evenly spaced inputs from zero to the top of the model's recorded range.
+    ModelRange,
+    /// The rows of a recording (its commands, and `bat_a` for a current line).
+    Rows {
+        /// The recording.
+        recording: &'a Recording,
+        /// Its name, for errors.
+        origin: &'a str,
+    },
+}
+
+/// The best straight line through the origin to a model, and what it costs.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LinearFit {
+    /// Input of the line.
+    pub input: LineInput,
+    /// Largest input of the range the line was fitted over (throttle, or amperes).
+    pub range_max: f64,
+    /// Slope per axis, µT per unit throttle or per ampere.
+    pub slope: [f64; 3],
+    /// RMS over the range of the full model minus the line, per axis, µT.
+    pub rms_left_ut: [f64; 3],
+    /// Worst apparent heading error the line leaves over the range, degrees, on the model's
+    /// motors-off field.
+    pub worst_heading_deg: f64,
+    /// The same with no compensation at all, for comparison.
+    pub uncompensated_heading_deg: f64,
+}
+
+impl LinearFit {
+    /// ArduPilot compassmot's interference figure for this line: the field change at the top
+    /// of the range in percent of 530 mG (compassmot's own reference). ArduPilot's guidance:
+    /// below 30 % fine, 30-60 % a grey zone, above 60 % unacceptable.
+    pub fn ardupilot_interference_pct(&self) -> f64 {
+        Vec3::from(self.slope).norm() * self.range_max / ARDUPILOT_EXPECTED_FIELD_UT * 100.0
+    }
+}
+
+/// Inputs and model disturbances at which an approximation is fitted and judged.
+pub(crate) struct Samples {
+    /// The line's input at each sample.
+    pub x: Vec<f64>,
+    /// The full model's disturbance at each sample, µT.
+    pub dist: Vec<Vec3>,
+}
+
+/// Worst apparent heading error over samples on the model's motors-off field, for a correction
+/// that leaves `left(k)` of the disturbance at sample k.
+pub(crate) fn worst_heading_deg(model: &Model, n: usize, left: impl Fn(usize) -> Vec3) -> f64 {
+    let reference = Vec3::from(model.reference_ut);
+    let h0 = heading_deg(reference, None);
+    (0..n)
+        .map(|k| heading_difference_deg(heading_deg(reference + left(k), None), h0).abs())
+        .fold(0.0, f64::max)
+}
+
+fn samples(model: &Model, input: LineInput, span: Span) -> Result<Samples, LogsError> {
+    match span {
+        Span::ModelRange => {
+            if input != LineInput::of(model) {
+                return Err(LogsError::Export(format!(
+                    "the model's input is {:?}; a line per {} needs the recording it applies to (--recording R.csv{})",
+                    model.input.kind,
+                    match input {
+                        LineInput::Current => "ampere",
+                        LineInput::Throttle => "unit throttle",
+                    },
+                    match input {
+                        LineInput::Current => ", with a bat_a column",
+                        LineInput::Throttle => "",
+                    }
+                )));
+            }
+            let range_max = model.input.hi;
+            if !(range_max.is_finite() && range_max > 0.0) {
+                return Err(LogsError::Export(format!(
+                    "the model's input range ends at {range_max}; a line needs a positive range"
+                )));
+            }
+            let mut s = model.scratch();
+            let x: Vec<f64> = (0..GRID)
+                .map(|i| range_max * i as f64 / (GRID - 1) as f64)
+                .collect();
+            let dist = x.iter().map(|&v| model.dist_at_input(v, &mut s)).collect();
+            Ok(Samples { x, dist })
+        }
+        Span::Rows { recording, origin } => {
+            model
+                .input
+                .check_recording(recording, origin)
+                .map_err(|e| LogsError::Export(e.to_string()))?;
+            let x = match input {
+                LineInput::Throttle => recording.overall_throttle_column(),
+                LineInput::Current => recording.bat_a.clone().ok_or_else(|| {
+                    LogsError::Export(format!(
+                        "{origin}: a line per ampere needs the supply current, but the recording has no `bat_a` column"
+                    ))
+                })?,
+            };
+            Ok(Samples {
+                x,
+                dist: model.dist_column(recording),
+            })
+        }
+    }
+}
+
+/// Fits the line through the origin to the model along `input` over `span`. Per-motor models
+/// are evaluated with every motor at the same command over the model range, and at each row's
+/// own commands over a recording.
+pub fn linear_approximation(
+    model: &Model,
+    input: LineInput,
+    span: Span,
+) -> Result<LinearFit, LogsError> {
+    let Samples { x, dist } = samples(model, input, span)?;
+    let n = x.len();
+    let sxx: f64 = x.iter().map(|v| v * v).sum();
+    let range_max = x.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    if !(sxx.is_finite() && sxx > 0.0) {
+        return Err(LogsError::Export(format!(
+            "the {input:?} input is zero (or not finite) everywhere in the range; no line can be fitted"
+        )));
+    }
+    let slope: [f64; 3] =
+        std::array::from_fn(|a| x.iter().zip(&dist).map(|(v, d)| v * d[a]).sum::<f64>() / sxx);
+    let line = Vec3::from(slope);
+    let rms_left_ut = std::array::from_fn(|a| {
+        (x.iter()
+            .zip(&dist)
+            .map(|(v, d)| (d[a] - slope[a] * v).powi(2))
+            .sum::<f64>()
+            / n as f64)
+            .sqrt()
+    });
+    Ok(LinearFit {
+        input,
+        range_max,
+        slope,
+        rms_left_ut,
+        worst_heading_deg: worst_heading_deg(model, n, |k| dist[k] - line * x[k]),
+        uncompensated_heading_deg: worst_heading_deg(model, n, |k| dist[k]),
+    })
+}
+
+/// An autopilot's parameter values for a line: the type parameter and the three coefficients,
+/// in the autopilot's units and sign.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AutopilotLine {
+    /// `CAL_MAG_COMP_TYP` (PX4) or `COMPASS_MOTCT` (ArduPilot): 1 throttle, 2 current.
+    pub kind: u8,
+    /// Coefficients per axis: minus the slope, in G per unit throttle or per kA (PX4), mG per
+    /// unit throttle or per A (ArduPilot).
+    pub coefficients: [f64; 3],
+}
+
+impl LinearFit {
+    /// PX4's `CAL_MAG_COMP_TYP` and `CAL_MAGn_{X,Y,Z}COMP`.
+    pub fn px4(&self) -> AutopilotLine {
+        // Gauss per unit throttle, or gauss per kA from µT per A.
+        let (kind, scale) = match self.input {
+            LineInput::Current => (2, 0.01 * 1000.0),
+            LineInput::Throttle => (1, 0.01),
+        };
+        AutopilotLine {
+            kind,
+            coefficients: self.slope.map(|s| -s * scale),
+        }
+    }
+
+    /// ArduPilot's `COMPASS_MOTCT` and `COMPASS_MOT_{X,Y,Z}`.
+    pub fn ardupilot(&self) -> AutopilotLine {
+        AutopilotLine {
+            kind: match self.input {
+                LineInput::Current => 2,
+                LineInput::Throttle => 1,
+            },
+            coefficients: self.slope.map(|s| -s * 10.0),
+        }
+    }
+}
+
+/// PX4 parameters in the QGroundControl parameter-file format, for magnetometer `instance`.
+pub fn px4_params(line: &LinearFit, instance: usize) -> String {
+    let p = line.px4();
+    let (power, unit) = match line.input {
+        LineInput::Current => ("current (battery 0)", "G/kA"),
+        LineInput::Throttle => ("throttle", "G per unit throttle"),
+    };
+    let mut out = format!(
+        "# PX4 magnetometer power compensation exported by magstand {}\n\
+         # CAL_MAG_COMP_TYP {}: {power}; coefficients in {unit}, minus the fitted slope\n\
+         # (PX4 corrects with mag + coefficient x power).\n\
+         # Vehicle-Id\tComponent-Id\tName\tValue\tType\n\
+         1\t1\tCAL_MAG_COMP_TYP\t{}\t6\n",
+        env!("CARGO_PKG_VERSION"),
+        p.kind,
+        p.kind
+    );
+    for (a, axis) in ["X", "Y", "Z"].iter().enumerate() {
+        out += &format!(
+            "1\t1\tCAL_MAG{instance}_{axis}COMP\t{:.6}\t9\n",
+            p.coefficients[a]
+        );
+    }
+    out
+}
+
+/// ArduPilot parameters as a `.param` file (`NAME,VALUE` lines) for compass `instance` (1, 2
+/// or 3).
+pub fn ardupilot_params(line: &LinearFit, instance: usize) -> String {
+    let p = line.ardupilot();
+    let (power, unit) = match line.input {
+        LineInput::Current => ("current", "mG per A"),
+        LineInput::Throttle => ("throttle", "mG per unit throttle"),
+    };
+    let suffix = if instance <= 1 {
+        String::new()
+    } else {
+        instance.to_string()
+    };
+    let mut out = format!(
+        "# ArduPilot compassmot parameters exported by magstand {}; {unit}, minus the fitted slope\n\
+         # (ArduPilot corrects with field + COMPASS_MOT x {power}).\n\
+         COMPASS_MOTCT,{}\n",
+        env!("CARGO_PKG_VERSION"),
+        p.kind
+    );
+    for (a, axis) in ["X", "Y", "Z"].iter().enumerate() {
+        out += &format!("COMPASS_MOT{suffix}_{axis},{:.3}\n", p.coefficients[a]);
+    }
+    out
+}
+
+/// One line per axis of what the line leaves, and the autopilots' own figures, for the
+/// terminal.
+pub fn describe(line: &LinearFit) -> String {
+    let mut out = format!(
+        "best line through the origin over 0..{:.3} ({}):\n",
+        line.range_max,
+        line.input.unit()
+    );
+    for (a, axis) in AXES.iter().enumerate() {
+        out += &format!(
+            "  {axis}: slope {:9.4}, leaves {:.3} uT RMS of the full model\n",
+            line.slope[a], line.rms_left_ut[a]
+        );
+    }
+    out += &format!(
+        "worst apparent heading error: {:.2} deg uncompensated, {:.2} deg with the line, 0 with the full model\n\
+         ArduPilot compassmot interference at the top of the range: {:.0} % of 530 mG (ArduPilot: <30 % fine, 30-60 % grey zone, >60 % unacceptable)\n",
+        line.uncompensated_heading_deg,
+        line.worst_heading_deg,
+        line.ardupilot_interference_pct()
+    );
+    out
+}
