@@ -260,6 +260,38 @@ pub fn print_summary(model: &Model) {
     }
 }
 
+/// Prints the PX4 and ArduPilot figures beside the model's, on the same rows.
+fn print_compatibility(model: &Model, rec: &magstand_core::Recording, origin: &str) -> Result<()> {
+    let c = magstand_ident::compatibility::compatibility(model, rec, origin)?;
+    println!(
+        "beside the autopilots' lines on the same rows (PX4 keeps its line's slope only; interference as ArduPilot's compassmot: field change at the top of the recorded range, % of 530 mG):"
+    );
+    println!(
+        "{:>12} {:>23} {:>26} {:>13}",
+        "", "r2 x / y / z", "holdout_rmse_ut x / y / z", "interference"
+    );
+    for (name, f) in [
+        ("magstand", &c.model),
+        ("PX4 line", &c.px4),
+        ("compassmot", &c.ardupilot),
+    ] {
+        println!(
+            "{name:>12} {:>7.4} {:>7.4} {:>7.4} {:>8.3} {:>8.3} {:>8.3} {:>11.0} %",
+            f.r2[0],
+            f.r2[1],
+            f.r2[2],
+            f.holdout_rmse_ut[0],
+            f.holdout_rmse_ut[1],
+            f.holdout_rmse_ut[2],
+            f.interference_pct
+        );
+    }
+    println!(
+        "(ArduPilot's guidance on interference: below 30 % fine, 30-60 % a grey zone, above 60 % unacceptable)"
+    );
+    Ok(())
+}
+
 /// Runs `magstand fit`.
 pub fn run(a: FitArgs) -> Result<()> {
     let cfg = config(&a)?.check()?;
@@ -277,6 +309,7 @@ pub fn run(a: FitArgs) -> Result<()> {
         .save(&a.model_out)
         .with_context(|| format!("writing {}", a.model_out.display()))?;
     print_summary(&model);
+    print_compatibility(&model, &rec, &origin)?;
     println!("wrote {}", a.model_out.display());
     Ok(())
 }

@@ -10,7 +10,8 @@
 //! * automatic structure ([`structure`], LOLIMOT): number, centres and widths from the data;
 //! * inputs beyond the overall throttle ([`InputKind`]): per-motor commands, supply current;
 //! * the autopilots' straight lines for comparison ([`baseline`]);
-//! * metrics ([`metrics`]): eq. 9, eq. 20, heading error, interference.
+//! * metrics ([`metrics`]): eq. 9, eq. 20, heading error, interference; and the autopilots'
+//!   own figures beside a model's ([`compatibility`]).
 //!
 //! Settings are checked before fitting: a [`FitConfig`] becomes a [`ValidFitConfig`], which
 //! implements [`Fit`]. The resulting [`Model`] implements [`Predict`] and compensates.
@@ -41,6 +42,7 @@
 #![warn(missing_docs)]
 
 pub mod baseline;
+pub mod compatibility;
 mod config;
 mod dataset;
 mod error;

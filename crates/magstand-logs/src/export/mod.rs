@@ -20,6 +20,7 @@
 //! model as a C header or a `no_std` Rust module) and [`json`] (a table and every figure, for
 //! other tools).
 use magstand_core::{AXES, Recording, Vec3};
+use magstand_ident::compatibility::ardupilot_interference_pct;
 use magstand_ident::metrics::{heading_deg, heading_difference_deg};
 use magstand_ident::{InputKind, Model};
 
@@ -33,10 +34,6 @@ pub use firmware::{c_header, rust_module};
 
 /// Points over the recorded range at which the line is fitted and judged.
 const GRID: usize = 201;
-
-/// The field ArduPilot's compassmot divides by for its interference percentage: its expected
-/// Earth-field strength, 530 mG (`AP_ARMING_COMPASS_MAGFIELD_EXPECTED`), in µT.
-pub const ARDUPILOT_EXPECTED_FIELD_UT: f64 = 53.0;
 
 /// What the autopilot's line multiplies.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -101,7 +98,7 @@ impl LinearFit {
     /// of the range in percent of 530 mG (compassmot's own reference). ArduPilot's guidance:
     /// below 30 % fine, 30-60 % a grey zone, above 60 % unacceptable.
     pub fn ardupilot_interference_pct(&self) -> f64 {
-        Vec3::from(self.slope).norm() * self.range_max / ARDUPILOT_EXPECTED_FIELD_UT * 100.0
+        ardupilot_interference_pct(Vec3::from(self.slope) * self.range_max)
     }
 }
 

@@ -1,0 +1,161 @@
+//! The autopilots' own figures beside a model's, on the same data, so that users of either
+//! autopilot can compare in the terms they know.
+//!
+//! * PX4: the R² of PX4's least-squares line (only its slope is kept, as
+//!   `CAL_MAGn_{X,Y,Z}COMP`), per axis, and its RMSE on held-out time blocks.
+//! * ArduPilot: compassmot's interference percentage, the field change its running-average
+//!   line predicts at the top of the recorded range in percent of 530 mG (compassmot's fixed
+//!   reference, `AP_ARMING_COMPASS_MAGFIELD_EXPECTED`), with ArduPilot's guidance (below 30 %
+//!   fine, 30-60 % a grey zone, above 60 % unacceptable); and the same line's R² and held-out
+//!   RMSE.
+use crate::IdentError;
+use crate::config::{Family, Fit, FitConfig};
+use crate::dataset::{Dataset, InputKind};
+use crate::model::{FitSummary, Model};
+use magstand_core::{Recording, Vec3};
+
+/// The field compassmot divides by for its interference percentage (530 mG), µT.
+pub const ARDUPILOT_EXPECTED_FIELD_UT: f64 = 53.0;
+
+/// ArduPilot's interference percentage of a disturbance vector.
+pub fn ardupilot_interference_pct(dist_ut: Vec3) -> f64 {
+    dist_ut.norm() / ARDUPILOT_EXPECTED_FIELD_UT * 100.0
+}
+
+/// One model's figures on the data.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Figures {
+    /// Coefficient of determination on all rows, per axis.
+    pub r2: [f64; 3],
+    /// RMSE on held-out time blocks of a fit that did not see them, per axis, µT.
+    pub holdout_rmse_ut: [f64; 3],
+    /// Predicted field change at the top of the recorded input range in percent of 530 mG.
+    pub interference_pct: f64,
+}
+
+/// A model beside the PX4 and ArduPilot lines fitted to the same data.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Compatibility {
+    /// The model's own figures.
+    pub model: Figures,
+    /// PX4's line (slope only).
+    pub px4: Figures,
+    /// ArduPilot compassmot's running-average line.
+    pub ardupilot: Figures,
+}
+
+fn figures(model: &Model, top: f64) -> Result<Figures, IdentError> {
+    let summary: &FitSummary = model.summary.as_ref().ok_or_else(|| IdentError::Data {
+        origin: model.method.clone(),
+        message: "the model has no fit summary (it was not fitted by magstand fit)".into(),
+    })?;
+    let mut s = model.scratch();
+    Ok(Figures {
+        r2: summary.r2,
+        holdout_rmse_ut: summary.holdout_rmse_ut,
+        interference_pct: ardupilot_interference_pct(model.dist_at_input(top, &mut s)),
+    })
+}
+
+/// Fits the PX4 and ArduPilot lines on the recording `model` was fitted on and puts their
+/// figures beside the model's. A per-motor model's lines are of the overall throttle.
+pub fn compatibility(
+    model: &Model,
+    rec: &Recording,
+    origin: &str,
+) -> Result<Compatibility, IdentError> {
+    let input = match model.input.kind {
+        InputKind::Current => InputKind::Current,
+        InputKind::Throttle | InputKind::Motors => InputKind::Throttle,
+    };
+    let data = Dataset::from_recording(rec, input, origin)?;
+    // The top of the recorded range, in the input's own units.
+    let top = (0..rec.len())
+        .map(|r| data.spec.raw(rec, r))
+        .fold(f64::NEG_INFINITY, f64::max);
+    let line = |family: Family| -> Result<Figures, IdentError> {
+        figures(
+            &FitConfig::baseline(family)
+                .with_input(input)
+                .check()?
+                .fit(&data)?,
+            top,
+        )
+    };
+    Ok(Compatibility {
+        model: figures(model, top)?,
+        px4: line(Family::Px4)?,
+        ardupilot: line(Family::ArduPilot)?,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::config::Fit;
+    use crate::local_linear::Estimation;
+
+    /// A 21-level stair whose deviation is `dist(u)` plus a small deterministic ripple.
+    fn stair(dist: impl Fn(f64) -> Vec3) -> Recording {
+        let mut rec = Recording {
+            thr: vec![vec![]],
+            overall_only: true,
+            ..Default::default()
+        };
+        for k in 0..4200 {
+            let u = ((k / 200) as f64 / 20.0).min(1.0);
+            rec.t_s.push(k as f64 * 0.01);
+            rec.thr[0].push(u);
+            let ripple = 0.05 * ((k as f64) * 1.7).sin();
+            rec.mag_ut
+                .push(Vec3::new(20.0, 1.0, 45.0) + dist(u) + Vec3::repeat(ripple));
+        }
+        rec
+    }
+
+    #[test]
+    fn a_straight_disturbance_gives_the_lines_full_marks_and_compassmots_percentage() {
+        let k = Vec3::new(6.0, -8.0, 24.0);
+        let rec = stair(|u| k * u);
+        let model = FitConfig::paper()
+            .check()
+            .unwrap()
+            .fit_recording(&rec, "line")
+            .unwrap();
+        let c = compatibility(&model, &rec, "line").unwrap();
+        for f in [&c.model, &c.px4] {
+            assert!(f.r2.iter().all(|r| *r > 0.99), "{c:?}");
+        }
+        // |k| at full throttle over 530 mG.
+        let want = k.norm() / 53.0 * 100.0;
+        assert!(
+            (c.px4.interference_pct - want).abs() < 0.5,
+            "{c:?} vs {want}"
+        );
+        assert!(
+            (c.model.interference_pct - want).abs() < 0.5,
+            "{c:?} vs {want}"
+        );
+    }
+
+    #[test]
+    fn a_curved_disturbance_is_explained_by_the_model_and_not_by_the_lines() {
+        let rec = stair(|u| Vec3::new(2.0, -3.0, 12.0) * (u * u * u * 3.0));
+        let model = FitConfig::evenly_spaced(5, Estimation::Global)
+            .check()
+            .unwrap()
+            .fit_recording(&rec, "cubic")
+            .unwrap();
+        let c = compatibility(&model, &rec, "cubic").unwrap();
+        for a in 0..3 {
+            assert!(
+                c.model.r2[a] > 0.99 && c.px4.r2[a] < 0.9 && c.ardupilot.r2[a] < 0.9,
+                "axis {a}: {c:?}"
+            );
+            assert!(
+                c.model.holdout_rmse_ut[a] < c.px4.holdout_rmse_ut[a],
+                "{c:?}"
+            );
+        }
+    }
+}
