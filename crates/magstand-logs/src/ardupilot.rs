@@ -34,6 +34,23 @@ pub fn streams(log: &LogContents, opts: &ImportOptions) -> Result<VehicleStreams
             .filter(|s| s.values.iter().any(|v| *v > 0.5));
         out.bat_a = b.stream("Curr", scaled);
     }
+    // ESC telemetry (BLHeli, DroneCAN): one ESC message per instance, current in A, in motor
+    // order.
+    let motor_count = out.motors.values.first().map_or(0, |m| m.len());
+    out.esc_a = (0..motor_count.min(u8::MAX as usize) as u8)
+        .map_while(|i| {
+            log.series("ESC", i)?
+                .stream("Curr", |a| (a.is_finite() && a >= 0.0).then_some(a))
+                .filter(|s| !s.is_empty())
+        })
+        .collect();
+    if !out.esc_a.is_empty() {
+        out.notes.push(format!(
+            "per-ESC currents from ESC for {} motors, written as esc_1_a..esc_{}_a",
+            out.esc_a.len(),
+            out.esc_a.len()
+        ));
+    }
     if let Some(a) = log.series("ATT", 0)
         && let (Some(r), Some(p), Some(y)) = (a.field("Roll"), a.field("Pitch"), a.field("Yaw"))
     {

@@ -7,6 +7,7 @@ use std::fmt::Write as _;
 use std::path::Path;
 
 use magstand_core::interpolation::{interpolate, locate};
+use magstand_core::recording_csv::format_extra;
 use magstand_core::{Quat, Recording};
 
 use crate::LogsError;
@@ -376,6 +377,8 @@ fn align(
         .as_ref()
         .map(monotonic)
         .filter(|s| !s.is_empty());
+    let esc: Vec<Stream<f64>> = st.esc_a.iter().map(monotonic).collect();
+    let mut esc_cols: Vec<Vec<String>> = vec![Vec::new(); esc.len()];
     let mut rec = Recording {
         thr: vec![Vec::new(); n_motors],
         bat_v: bat_v.as_ref().map(|_| Vec::new()),
@@ -445,6 +448,9 @@ fn align(
         if let (Some(s), Some(c)) = (&att, rec.attitude.as_mut()) {
             c.push(at_quat(s, t));
         }
+        for (s, col) in esc.iter().zip(esc_cols.iter_mut()) {
+            col.push(format_extra(at_scalar(s, t)));
+        }
         armed_col.push(if armed { "1" } else { "0" }.to_string());
         landed_col.push(landed.map_or("", |l| if l { "1" } else { "0" }).to_string());
         kinds.push(kind);
@@ -478,6 +484,9 @@ fn align(
         )));
     }
     report.segments = segments(&rec, &kinds);
+    for (i, col) in esc_cols.into_iter().enumerate() {
+        rec.extra.push((format!("esc_{}_a", i + 1), col));
+    }
     rec.extra.push(("armed".into(), armed_col));
     if st.landed.is_some() {
         rec.extra.push(("landed".into(), landed_col));

@@ -52,6 +52,22 @@ pub fn streams(log: &LogContents, opts: &ImportOptions) -> Result<VehicleStreams
         // PX4 logs -1 for a current it does not measure.
         out.bat_a = scalar(b, "current_a", |a| a >= 0.0);
     }
+    if let Some(e) = log.series("esc_status", 0) {
+        // esc_count says how many of the fixed-size esc[] entries are in use.
+        let count = e
+            .field("esc_count")
+            .map_or(0, |c| c.iter().copied().fold(0.0, f64::max) as usize);
+        out.esc_a = (0..count.min(out.motors.values.first().map_or(0, |m| m.len())))
+            .map_while(|i| scalar(e, &format!("esc[{i}].esc_current"), |a| a >= 0.0))
+            .collect();
+    }
+    if !out.esc_a.is_empty() {
+        out.notes.push(format!(
+            "per-ESC currents from esc_status for {} motors, written as esc_1_a..esc_{}_a",
+            out.esc_a.len(),
+            out.esc_a.len()
+        ));
+    }
     if let Some(a) = log.series("vehicle_attitude", 0) {
         let q: Vec<Option<&[f64]>> = (0..4).map(|i| a.field(&format!("q[{i}]"))).collect();
         if q.iter().all(|c| c.is_some()) {

@@ -67,6 +67,9 @@ pub struct VehicleStreams {
     pub bat_v: Option<Stream<f64>>,
     /// Battery current, A.
     pub bat_a: Option<Stream<f64>>,
+    /// Each ESC's own current, A, in motor order (PX4 `esc_status`, ArduPilot `ESC`); empty
+    /// when the ESCs do not report it.
+    pub esc_a: Vec<Stream<f64>>,
     /// Attitude, body to north-east-down.
     pub attitude: Option<Stream<Quat>>,
     /// Armed state changes (or samples).

@@ -117,6 +117,31 @@ fn px4_logs_pick_the_internal_compass_and_the_motor_outputs() {
         "its 3 Hz stream has gaps of over a second"
     );
     assert!(max(&rec.thr[0]) > 0.3);
+    // Its per-ESC currents (esc_status, 3.2 Hz, about 5-9 A each in the first messages).
+    let esc: Vec<Vec<f64>> = (1..=4)
+        .map(|i| {
+            let name = format!("esc_{i}_a");
+            let (_, cells) = rec
+                .extra
+                .iter()
+                .find(|(n, _)| *n == name)
+                .unwrap_or_else(|| panic!("no {name} in {:?}", report.notes));
+            cells.iter().map(|c| c.parse().unwrap()).collect()
+        })
+        .collect();
+    for (i, e) in esc.iter().enumerate() {
+        assert_eq!(e.len(), rec.len());
+        assert!(
+            e.iter().all(|a| (0.0..100.0).contains(a)) && max(e) > 3.0,
+            "ESC {i}: {:?}",
+            &e[..10]
+        );
+    }
+    assert!(
+        report.notes.iter().any(|n| n.contains("esc_status")),
+        "{:?}",
+        report.notes
+    );
 }
 
 #[test]
