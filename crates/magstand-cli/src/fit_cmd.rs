@@ -169,6 +169,9 @@ fn take_out_earth_field(
         p.attitude_span_deg.0,
         p.attitude_span_deg.1
     );
+    for w in &p.warnings {
+        eprintln!("warning: {w}");
+    }
     Ok(p.recording)
 }
 

@@ -73,6 +73,8 @@ pub struct FlightPrep {
     pub residual_rms_ut: f64,
     /// Largest tilt from level in the data, degrees, and the yaw range covered, degrees.
     pub attitude_span_deg: (f64, f64),
+    /// What makes the result doubtful, in words (empty when nothing does).
+    pub warnings: Vec<String>,
 }
 
 /// Input column at each row, moved later by `delay_s` (linear interpolation over the rows;
@@ -271,12 +273,26 @@ pub fn prepare_flight(
         .map(|q| q.euler_angles().2.to_degrees())
         .collect();
     let yaw_span = yaw_coverage_deg(&yaws);
+    let mut warnings = Vec::new();
+    if dt > 0.5 * cfg.max_delay_s {
+        warnings.push(format!(
+            "{origin}: the magnetometer rows are {dt:.2} s apart, so a delay below {:.2} s cannot be resolved; the delay found ({delay_s:.3} s) rests on interpolation between rows",
+            cfg.max_delay_s
+        ));
+    }
+    if delay_s >= cfg.max_delay_s - 0.5 * h {
+        warnings.push(format!(
+            "{origin}: the best delay is at the end of the search ({:.3} s): the magnetometer lags more (raise --max-delay-s), or the delay is not identifiable from this log",
+            cfg.max_delay_s
+        ));
+    }
     Ok(FlightPrep {
         recording: out,
         earth_ned_ut: earth,
         delay_s,
         residual_rms_ut: rms,
         attitude_span_deg: (tilt, yaw_span),
+        warnings,
     })
 }
 
@@ -335,6 +351,7 @@ mod tests {
             p.earth_ned_ut
         );
         assert!((p.delay_s - 0.1).abs() < 0.01, "{}", p.delay_s);
+        assert!(p.warnings.is_empty(), "{:?}", p.warnings);
         // The stand-equivalent reading no longer depends on the attitude: it is e + b + d.
         let u = p.recording.thr[0][600];
         let expect =
@@ -364,5 +381,30 @@ mod tests {
             ..FlightConfig::default()
         };
         assert!(prepare_flight(&rec, &known, "still.csv").is_ok());
+    }
+
+    #[test]
+    fn a_delay_beyond_the_search_or_below_the_row_spacing_is_flagged() {
+        // Seen 0.3 s late, searched up to 0.1 s: the best delay sits at the end of the search.
+        let (rec, _) = flight(0.3);
+        let cfg = FlightConfig {
+            max_delay_s: 0.1,
+            ..FlightConfig::default()
+        };
+        let p = prepare_flight(&rec, &cfg, "late").unwrap();
+        assert!(
+            p.warnings.len() == 1 && p.warnings[0].contains("end of the search"),
+            "{} {:?}",
+            p.delay_s,
+            p.warnings
+        );
+        // Rows 1 s apart (as in PX4 logs at 1 Hz) cannot resolve a delay under 0.5 s.
+        let sparse = rec.select_rows(|r| r % 20 == 0);
+        let p = prepare_flight(&sparse, &FlightConfig::default(), "sparse").unwrap();
+        assert!(
+            p.warnings.iter().any(|w| w.contains("cannot be resolved")),
+            "{:?}",
+            p.warnings
+        );
     }
 }
