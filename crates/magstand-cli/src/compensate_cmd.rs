@@ -12,7 +12,8 @@ use magstand_ident::metrics::Evaluation;
 /// Arguments of `magstand compensate`.
 #[derive(Args)]
 pub struct CompensateArgs {
-    /// Model file written by `magstand fit`.
+    /// Model file written by `magstand fit`, or an augmented model written by
+    /// `magstand diagnose --model-out`.
     #[arg(long)]
     model: PathBuf,
     /// Recording to compensate.
@@ -23,9 +24,58 @@ pub struct CompensateArgs {
     out: PathBuf,
 }
 
+/// The `format` a model file declares, if it is JSON with one.
+fn declared_format(path: &std::path::Path) -> Option<String> {
+    let text = std::fs::read_to_string(path).ok()?;
+    let v: serde_json::Value = serde_json::from_str(&text).ok()?;
+    v.get("format")?.as_str().map(String::from)
+}
+
+/// Compensates with an augmented model from `magstand diagnose`.
+fn run_augmented(a: &CompensateArgs) -> Result<()> {
+    let model = magstand_diagnose::AugmentedModel::load(&a.model)?;
+    let rec = recording_csv::read(&a.recording)?;
+    let origin = a.recording.display().to_string();
+    let out = model.compensate(&rec, &origin)?;
+    if let Some(dir) = a.out.parent().filter(|d| !d.as_os_str().is_empty()) {
+        files::ensure_dir(dir)?;
+    }
+    recording_csv::write(&out, &a.out)?;
+    let effects: Vec<&str> = model.effects.iter().map(|e| e.name.as_str()).collect();
+    println!(
+        "compensated {} rows with the augmented physics (nominal stand{}) -> {}",
+        rec.len(),
+        if effects.is_empty() {
+            String::new()
+        } else {
+            format!(" + {}", effects.join(" + "))
+        },
+        a.out.display()
+    );
+    if let Some(t) = &rec.truth {
+        let n = rec.len().max(1) as f64;
+        let e: Vec<f64> = (0..3)
+            .map(|ax| {
+                let s: f64 = (0..rec.len())
+                    .map(|r| (rec.mag_ut[r][ax] - out.mag_ut[r][ax] - t.dist_ut[r][ax]).powi(2))
+                    .sum();
+                (s / n).sqrt()
+            })
+            .collect();
+        println!(
+            "against ground truth: predicted-disturbance RMSE x {:.3} y {:.3} z {:.3} uT",
+            e[0], e[1], e[2]
+        );
+    }
+    Ok(())
+}
+
 /// Runs `magstand compensate`.
 pub fn run(a: CompensateArgs) -> Result<()> {
     files::refuse_overwriting_inputs(&[&a.model, &a.recording], &[&a.out])?;
+    if declared_format(&a.model).as_deref() == Some(magstand_diagnose::augmented_model::FORMAT) {
+        return run_augmented(&a);
+    }
     let model = Model::load(&a.model)?;
     let rec = recording_csv::read(&a.recording)?;
     let out = model.compensate(&rec, &a.recording.display().to_string())?;

@@ -27,6 +27,10 @@ pub struct DiagnoseArgs {
     /// Write the augmented scenario: the nominal one with every accepted effect switched on.
     #[arg(long)]
     augmented: Option<PathBuf>,
+    /// Write the augmented model (format magstand-augmented-model): the calibrated nominal
+    /// physics with the accepted effects, usable by `magstand compensate --model`.
+    #[arg(long = "model-out")]
+    model_out: Option<PathBuf>,
     /// Write an HTML report with the residual figures into this folder.
     #[arg(long)]
     report: Option<PathBuf>,
@@ -44,6 +48,7 @@ pub fn run(a: DiagnoseArgs) -> Result<()> {
     let mut outputs: Vec<&std::path::Path> = Vec::new();
     outputs.extend(a.json.as_deref());
     outputs.extend(a.augmented.as_deref());
+    outputs.extend(a.model_out.as_deref());
     outputs.extend(page.as_deref());
     let mut inputs: Vec<&std::path::Path> = vec![&a.recording];
     let scenario_path = a
@@ -77,6 +82,10 @@ pub fn run(a: DiagnoseArgs) -> Result<()> {
     }
     if let Some(p) = &a.augmented {
         magstand_core::atomic_file::write_bytes(p, d.augmented_scenario.as_bytes())?;
+        println!("wrote {}", p.display());
+    }
+    if let (Some(p), Some(m)) = (&a.model_out, &d.model) {
+        m.save(p)?;
         println!("wrote {}", p.display());
     }
     if let Some(dir) = &a.report {

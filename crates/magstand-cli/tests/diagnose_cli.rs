@@ -36,6 +36,7 @@ fn a_delayed_magnetometer_stream_is_named_and_the_outputs_are_written() {
     let json = dir.path().join("d.json");
     let aug = dir.path().join("aug.toml");
     let report = dir.path().join("report");
+    let model = dir.path().join("a.json");
     let r = magstand(&[
         "diagnose",
         "--recording",
@@ -48,6 +49,8 @@ fn a_delayed_magnetometer_stream_is_named_and_the_outputs_are_written() {
         aug.to_str().unwrap(),
         "--report",
         report.to_str().unwrap(),
+        "--model-out",
+        model.to_str().unwrap(),
     ]);
     assert!(r.ok, "{}", r.stderr);
     assert!(r.stdout.contains("verdict: time_offset"), "{}", r.stdout);
@@ -63,6 +66,25 @@ fn a_delayed_magnetometer_stream_is_named_and_the_outputs_are_written() {
     assert!((s.params().logging.mag_delay_s - 0.1).abs() < 0.015);
     let page = std::fs::read_to_string(report.join("index.html")).unwrap();
     assert!(page.contains("Mismatch diagnosis") && page.contains("time_offset"));
+    // The augmented model compensates the recording like a fitted one.
+    let out = dir.path().join("c.csv");
+    let r = magstand(&[
+        "compensate",
+        "--model",
+        model.to_str().unwrap(),
+        "--recording",
+        rec.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(r.ok, "{}", r.stderr);
+    assert!(
+        r.stdout.contains("time_offset") && r.stdout.contains("against ground truth"),
+        "{}",
+        r.stdout
+    );
+    let c = magstand_core::recording_csv::read(&out).unwrap();
+    assert!(c.extra.iter().any(|(n, _)| n == "dist_x_ut"));
 }
 
 #[test]

@@ -147,6 +147,13 @@ pub struct Diagnosis {
     pub settings: Settings,
     /// The augmented scenario (TOML), with every accepted effect switched on.
     pub augmented_scenario: String,
+    /// The calibrated augmented physics as a model `compensate` can use (written to its own
+    /// file, not into the diagnosis file).
+    #[serde(skip)]
+    pub model: Option<crate::augmented_model::AugmentedModel>,
+    /// The calibrated nominal physics alone, for comparison (not written either).
+    #[serde(skip)]
+    pub baseline_model: Option<crate::augmented_model::AugmentedModel>,
 }
 
 /// `value ± sd` with two significant digits of the uncertainty (four of the value without one).

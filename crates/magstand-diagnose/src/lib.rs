@@ -18,7 +18,8 @@
 //!    "unexplained" with its location rather than forced onto a wrong name.
 //! 4. **Model it.** The accepted effects switch the matching simulator modules on with the
 //!    fitted values ([`Diagnosis::augmented_scenario`]), and the replayed simulation of that
-//!    scenario is compared with the recording again.
+//!    scenario is compared with the recording again. The calibrated augmented physics is also
+//!    a model that compensates recordings ([`AugmentedModel`], `magstand compensate`).
 //!
 //! # Example
 //! ```
@@ -52,6 +53,7 @@
 //! ```
 #![warn(missing_docs)]
 
+pub mod augmented_model;
 mod config;
 pub mod diagnosis;
 pub mod effects;
@@ -63,6 +65,7 @@ mod search;
 pub mod split;
 mod stats;
 
+pub use augmented_model::AugmentedModel;
 pub use config::{DiagnoseConfig, ValidConfig};
 pub use diagnosis::{Diagnosis, UNEXPLAINED};
 pub use effects::{Context, Effect, EffectFit, Param, catalog};

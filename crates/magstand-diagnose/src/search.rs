@@ -32,10 +32,10 @@ struct Term<'e> {
 }
 
 /// The design of a model and which columns belong to which term.
-struct Built {
-    design: Design,
+pub(crate) struct Built {
+    pub(crate) design: Design,
     /// What the nominal physics fixes (per-motor wiring differences, switched-on extras).
-    fixed: Vec<Vec3>,
+    pub(crate) fixed: Vec<Vec3>,
     /// Motor current over its largest value: the load the noise variance grows with.
     load: Vec<f64>,
     term_columns: Vec<std::ops::Range<usize>>,
@@ -45,7 +45,7 @@ fn build(ctx: &Context, terms: &[(&dyn Effect, &[f64])]) -> Built {
     build_with_lead(ctx, terms, ctx.command_lead)
 }
 
-fn build_with_lead(ctx: &Context, terms: &[(&dyn Effect, &[f64])], lead: f64) -> Built {
+pub(crate) fn build_with_lead(ctx: &Context, terms: &[(&dyn Effect, &[f64])], lead: f64) -> Built {
     let mut s = ctx.nominal.clone();
     let mut recorded_v = false;
     for (e, theta) in terms {
@@ -523,6 +523,28 @@ pub fn diagnose(
             },
         );
     }
+    let as_model = |terms: &[Term], built: &Built, fitted: &Fitted, lead: f64| {
+        crate::augmented_model::AugmentedModel {
+            format: crate::augmented_model::FORMAT.into(),
+            version: crate::augmented_model::VERSION,
+            recording: origin.into(),
+            nominal_scenario: nominal.to_toml(),
+            command_lead: lead,
+            block_s: split.block_s,
+            holdout_every: cfg.holdout_every,
+            effects: terms
+                .iter()
+                .map(|t| crate::augmented_model::AugmentedTerm {
+                    name: t.effect.name().into(),
+                    theta: t.theta.clone(),
+                })
+                .collect(),
+            columns: built.design.names.clone(),
+            coefficients: fitted.coef.clone(),
+        }
+    };
+    let model = as_model(&terms, &final_built, &final_fit, ctx.command_lead);
+    let baseline_model = as_model(&[], &base_built, &base_fit, base_lead);
     let final_resid = final_fit.residuals(y);
     let final_z = standardized(&final_resid, &final_w);
     let final_white = whiteness(&final_z, &split);
@@ -617,6 +639,8 @@ pub fn diagnose(
             rows: [split.fit_rows(), rec.len() - split.fit_rows()],
         },
         augmented_scenario: augmented.to_toml(),
+        model: Some(model),
+        baseline_model: Some(baseline_model),
     })
 }
 
