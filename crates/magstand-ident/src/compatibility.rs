@@ -92,7 +92,6 @@ pub fn compatibility(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::config::Fit;
     use crate::local_linear::Estimation;
 
     /// A 21-level stair whose deviation is `dist(u)` plus a small deterministic ripple.
