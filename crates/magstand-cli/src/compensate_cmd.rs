@@ -7,7 +7,7 @@ use clap::Args;
 use crate::files;
 use magstand_core::recording_csv;
 use magstand_ident::Model;
-use magstand_ident::metrics::Evaluation;
+use magstand_ident::metrics::{Evaluation, against_truth};
 
 /// Arguments of `magstand compensate`.
 #[derive(Args)]
@@ -31,15 +31,23 @@ fn declared_format(path: &std::path::Path) -> Option<String> {
     v.get("format")?.as_str().map(String::from)
 }
 
+/// Prints the RMSE against ground truth of a simulated recording.
+fn print_truth(rmse_ut: Option<[f64; 3]>) {
+    if let Some(e) = rmse_ut {
+        println!(
+            "against ground truth: predicted-disturbance RMSE x {:.3} y {:.3} z {:.3} uT",
+            e[0], e[1], e[2]
+        );
+    }
+}
+
 /// Compensates with an augmented model from `magstand diagnose`.
 fn run_augmented(a: &CompensateArgs) -> Result<()> {
     let model = magstand_diagnose::AugmentedModel::load(&a.model)?;
     let rec = recording_csv::read(&a.recording)?;
     let origin = a.recording.display().to_string();
     let out = model.compensate(&rec, &origin)?;
-    if let Some(dir) = a.out.parent().filter(|d| !d.as_os_str().is_empty()) {
-        files::ensure_dir(dir)?;
-    }
+    files::ensure_parent(&a.out)?;
     recording_csv::write(&out, &a.out)?;
     let effects: Vec<&str> = model.effects.iter().map(|e| e.name.as_str()).collect();
     println!(
@@ -52,21 +60,14 @@ fn run_augmented(a: &CompensateArgs) -> Result<()> {
         },
         a.out.display()
     );
-    if let Some(t) = &rec.truth {
-        let n = rec.len().max(1) as f64;
-        let e: Vec<f64> = (0..3)
-            .map(|ax| {
-                let s: f64 = (0..rec.len())
-                    .map(|r| (rec.mag_ut[r][ax] - out.mag_ut[r][ax] - t.dist_ut[r][ax]).powi(2))
-                    .sum();
-                (s / n).sqrt()
-            })
-            .collect();
-        println!(
-            "against ground truth: predicted-disturbance RMSE x {:.3} y {:.3} z {:.3} uT",
-            e[0], e[1], e[2]
-        );
-    }
+    // What the model removed from each row is its predicted disturbance.
+    let removed: Vec<_> = rec
+        .mag_ut
+        .iter()
+        .zip(&out.mag_ut)
+        .map(|(m, c)| m - c)
+        .collect();
+    print_truth(against_truth(&rec, &removed).map(|(e, _)| e));
     Ok(())
 }
 
@@ -79,9 +80,7 @@ pub fn run(a: CompensateArgs) -> Result<()> {
     let model = Model::load(&a.model)?;
     let rec = recording_csv::read(&a.recording)?;
     let out = model.compensate(&rec, &a.recording.display().to_string())?;
-    if let Some(dir) = a.out.parent().filter(|d| !d.as_os_str().is_empty()) {
-        files::ensure_dir(dir)?;
-    }
+    files::ensure_parent(&a.out)?;
     recording_csv::write(&out, &a.out)?;
     let ev = Evaluation::new(&model, &rec);
     println!(
@@ -93,11 +92,6 @@ pub fn run(a: CompensateArgs) -> Result<()> {
         ev.interference_before_pct,
         ev.interference_after_pct
     );
-    if let Some(e) = ev.truth_rmse_ut {
-        println!(
-            "against ground truth: predicted-disturbance RMSE x {:.3} y {:.3} z {:.3} uT",
-            e[0], e[1], e[2]
-        );
-    }
+    print_truth(ev.truth_rmse_ut);
     Ok(())
 }

@@ -147,9 +147,7 @@ pub fn run(a: ExportArgs) -> Result<()> {
     };
     match &a.out {
         Some(path) => {
-            if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
-                files::ensure_dir(dir)?;
-            }
+            files::ensure_parent(path)?;
             magstand_core::atomic_file::write_bytes(path, text.as_bytes())?;
             eprintln!("wrote {}", path.display());
         }

@@ -10,6 +10,14 @@ pub fn ensure_dir(dir: &Path) -> Result<()> {
         .with_context(|| format!("cannot create output folder {}", dir.display()))
 }
 
+/// Creates the folder a file is to be written into, if the path names one.
+pub fn ensure_parent(file: &Path) -> Result<()> {
+    match file.parent().filter(|d| !d.as_os_str().is_empty()) {
+        Some(dir) => ensure_dir(dir),
+        None => Ok(()),
+    }
+}
+
 fn canonical(p: &Path) -> Option<PathBuf> {
     std::fs::canonicalize(p).ok()
 }

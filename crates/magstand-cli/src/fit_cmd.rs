@@ -305,9 +305,7 @@ pub fn run(a: FitArgs) -> Result<()> {
         rec = take_out_earth_field(&a, earth, &rec, &origin)?;
     }
     let model = cfg.fit_recording(&rec, &origin)?;
-    if let Some(dir) = a.model_out.parent().filter(|d| !d.as_os_str().is_empty()) {
-        files::ensure_dir(dir)?;
-    }
+    files::ensure_parent(&a.model_out)?;
     model
         .save(&a.model_out)
         .with_context(|| format!("writing {}", a.model_out.display()))?;

@@ -100,9 +100,7 @@ pub fn run(a: ImportArgs) -> Result<()> {
     };
     let (rec, report) = import_bytes(&bytes, path, &opts)?;
     drop(bytes);
-    if let Some(dir) = a.out.parent().filter(|d| !d.as_os_str().is_empty()) {
-        files::ensure_dir(dir)?;
-    }
+    files::ensure_parent(&a.out)?;
     magstand_core::recording_csv::write(&rec, &a.out)?;
     eprint!("{}", report.summary(&rec));
     eprintln!("wrote {}", a.out.display());

@@ -71,6 +71,22 @@ pub struct Evaluation {
     pub interference_after_pct: f64,
 }
 
+/// RMSE per axis of a predicted disturbance (one per row) against a simulated recording's true
+/// one, and the RMS of the true disturbance itself, µT; `None` without ground truth.
+pub fn against_truth(rec: &Recording, dist: &[Vec3]) -> Option<([f64; 3], [f64; 3])> {
+    let t = rec.truth.as_ref()?;
+    let n = rec.len().max(1) as f64;
+    let mut e = Vec3::zeros();
+    let mut d = Vec3::zeros();
+    for (p, truth) in dist.iter().zip(&t.dist_ut) {
+        let err = p - truth;
+        e += err.component_mul(&err);
+        d += truth.component_mul(truth);
+    }
+    let rms = |v: Vec3| [0, 1, 2].map(|a| (v[a] / n).sqrt());
+    Some((rms(e), rms(d)))
+}
+
 /// Groups rows by throttle: exact levels when there are at most 60 distinct ones, else bins.
 fn level_of(rec: &Recording) -> (Vec<f64>, Vec<usize>) {
     let thr = rec.overall_throttle_column();
@@ -192,18 +208,8 @@ impl Evaluation {
             .fold(0.0, f64::max)
             / ref_norm
             * 100.0;
-        let (truth_rmse_ut, truth_rms_dist_ut) = match &rec.truth {
-            Some(t) => {
-                let mut e = Vec3::zeros();
-                let mut d = Vec3::zeros();
-                for r in 0..n {
-                    let err = dist[r] - t.dist_ut[r];
-                    e += err.component_mul(&err);
-                    d += t.dist_ut[r].component_mul(&t.dist_ut[r]);
-                }
-                let f = |v: Vec3| [0, 1, 2].map(|a| (v[a] / n as f64).sqrt());
-                (Some(f(e)), Some(f(d)))
-            }
+        let (truth_rmse_ut, truth_rms_dist_ut) = match against_truth(rec, dist) {
+            Some((e, d)) => (Some(e), Some(d)),
             None => (None, None),
         };
         Evaluation {
