@@ -34,6 +34,7 @@ use crate::DiagnoseError;
 use crate::effects::{Context, Effect, catalog};
 use crate::search::build_with_lead;
 use crate::split::Split;
+use crate::versioned_json;
 
 /// Format name of the file.
 pub const FORMAT: &str = "magstand-augmented-model";
@@ -77,26 +78,14 @@ pub struct AugmentedModel {
 impl AugmentedModel {
     /// Reads a model file, refusing other formats and versions by name.
     pub fn load(path: &Path) -> Result<Self, DiagnoseError> {
-        let text = std::fs::read_to_string(path).map_err(|source| DiagnoseError::Io {
-            path: path.to_path_buf(),
-            source,
+        let m: AugmentedModel = versioned_json::read(path, FORMAT, VERSION, |m: &Self| {
+            (m.format.as_str(), m.version)
         })?;
-        let malformed = |message: String| DiagnoseError::Malformed {
-            path: path.to_path_buf(),
-            message,
-        };
-        let m: AugmentedModel =
-            serde_json::from_str(&text).map_err(|e| malformed(e.to_string()))?;
-        if m.format != FORMAT || m.version != VERSION {
-            return Err(malformed(format!(
-                "format {} version {}: expected {FORMAT} version {VERSION}",
-                m.format, m.version
-            )));
-        }
         if m.columns.len() != m.coefficients.len()
             || m.coefficients.iter().flatten().any(|c| !c.is_finite())
         {
-            return Err(malformed(
+            return Err(versioned_json::malformed(
+                path,
                 "expected one finite coefficient triple per column".into(),
             ));
         }
@@ -105,9 +94,7 @@ impl AugmentedModel {
 
     /// Writes the model as pretty JSON, atomically.
     pub fn save(&self, path: &Path) -> Result<(), DiagnoseError> {
-        let text = serde_json::to_string_pretty(self).expect("a model always serializes");
-        magstand_core::atomic_file::write_bytes(path, text.as_bytes())?;
-        Ok(())
+        versioned_json::write(self, path)
     }
 
     /// Predicted disturbance at every row of `rec` (named `origin` in errors), µT.

@@ -170,29 +170,14 @@ pub fn value_with_sd(value: f64, sd: Option<f64>) -> String {
 impl Diagnosis {
     /// Reads a diagnosis file.
     pub fn load(path: &Path) -> Result<Diagnosis, DiagnoseError> {
-        let text = std::fs::read_to_string(path).map_err(|source| DiagnoseError::Io {
-            path: path.to_path_buf(),
-            source,
-        })?;
-        let malformed = |message: String| DiagnoseError::Malformed {
-            path: path.to_path_buf(),
-            message,
-        };
-        let d: Diagnosis = serde_json::from_str(&text).map_err(|e| malformed(e.to_string()))?;
-        if d.format != FORMAT || d.version != VERSION {
-            return Err(malformed(format!(
-                "format {} version {}: expected {FORMAT} version {VERSION}",
-                d.format, d.version
-            )));
-        }
-        Ok(d)
+        crate::versioned_json::read(path, FORMAT, VERSION, |d: &Self| {
+            (d.format.as_str(), d.version)
+        })
     }
 
     /// Writes the diagnosis as pretty JSON, atomically.
     pub fn save(&self, path: &Path) -> Result<(), DiagnoseError> {
-        let text = serde_json::to_string_pretty(self).expect("a diagnosis always serializes");
-        magstand_core::atomic_file::write_bytes(path, text.as_bytes())?;
-        Ok(())
+        crate::versioned_json::write(self, path)
     }
 
     /// A summary a person can read in ten seconds.

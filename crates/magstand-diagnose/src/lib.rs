@@ -64,6 +64,7 @@ mod optimize;
 mod search;
 pub mod split;
 mod stats;
+mod versioned_json;
 
 pub use augmented_model::AugmentedModel;
 pub use config::{DiagnoseConfig, ValidConfig};
