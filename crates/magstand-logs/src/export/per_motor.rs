@@ -38,39 +38,49 @@ pub struct PerMotorFit {
     pub uncompensated_heading_deg: f64,
 }
 
-/// Per-motor regressors `(p_i V)^e` of every row.
-fn regressors(thr: &[Vec<f64>], volts: &[f64], expo: f64, row: usize, out: &mut [f64]) {
-    for (o, m) in out.iter_mut().zip(thr) {
-        let p = m[row] * volts[row];
-        *o = if p > 0.0 { p.powf(expo) } else { 0.0 };
+/// The per-motor form fitted at one exponent.
+struct AtExponent {
+    /// Least-squares coefficients, µT per (V)^e, one column per axis.
+    theta: nalgebra::DMatrix<f64>,
+    /// What the form leaves of the model at every row, µT.
+    left: Vec<Vec3>,
+}
+
+impl AtExponent {
+    /// Residual sum of squares over rows and axes.
+    fn ssr(&self) -> f64 {
+        self.left.iter().map(|l| l.norm_squared()).sum()
     }
 }
 
-/// Least-squares coefficients (µT per (V)^e, one column per axis) and the residual sum of
-/// squares at one exponent.
+/// Fits the coefficients at exponent `expo`; the regressors `(p_i V)^e` of each row are
+/// computed once and serve both the fit and its residuals.
 fn solve_at(
     thr: &[Vec<f64>],
     volts: &[f64],
     dist: &[Vec3],
     expo: f64,
-) -> Result<(nalgebra::DMatrix<f64>, f64), SolveError> {
+) -> Result<AtExponent, SolveError> {
     let n = thr.len();
+    let x: Vec<f64> = (0..dist.len())
+        .flat_map(|row| {
+            thr.iter().map(move |m| {
+                let p = m[row] * volts[row];
+                if p > 0.0 { p.powf(expo) } else { 0.0 }
+            })
+        })
+        .collect();
     let mut eq = NormalEquations::new(n, 3);
-    let mut x = vec![0.0; n];
-    for (row, d) in dist.iter().enumerate() {
-        regressors(thr, volts, expo, row, &mut x);
-        eq.add(&x, d.as_slice(), 1.0);
+    for (xr, d) in x.chunks_exact(n).zip(dist) {
+        eq.add(xr, d.as_slice(), 1.0);
     }
     let theta = eq.solve()?;
-    let mut ssr = 0.0;
-    for (row, d) in dist.iter().enumerate() {
-        regressors(thr, volts, expo, row, &mut x);
-        for a in 0..3 {
-            let fit: f64 = (0..n).map(|i| theta[(i, a)] * x[i]).sum();
-            ssr += (d[a] - fit).powi(2);
-        }
-    }
-    Ok((theta, ssr))
+    let left = x
+        .chunks_exact(n)
+        .zip(dist)
+        .map(|(xr, d)| d - Vec3::from_fn(|a, _| (0..n).map(|i| theta[(i, a)] * xr[i]).sum()))
+        .collect();
+    Ok(AtExponent { theta, left })
 }
 
 /// Fits ArduPilot's per-motor form to a per-motor model over the rows of `rec` (which needs
@@ -114,7 +124,7 @@ pub fn per_motor_fit(
     // fit singular there alone: such exponents cost infinity rather than ending the search.
     let ssr = |e: f64| {
         solve_at(thr, volts, &dist, e)
-            .map(|(_, s)| s)
+            .map(|f| f.ssr())
             .unwrap_or(f64::INFINITY)
     };
     // A coarse grid brackets the best exponent, golden section refines it.
@@ -142,14 +152,7 @@ pub fn per_motor_fit(
         }
     }
     let expo = 0.5 * (a + b);
-    let (theta, _) = solve_at(thr, volts, &dist, expo).map_err(refuse)?;
-    let mut x = vec![0.0; motors];
-    let left: Vec<Vec3> = (0..rec.len())
-        .map(|row| {
-            regressors(thr, volts, expo, row, &mut x);
-            dist[row] - Vec3::from_fn(|a, _| (0..motors).map(|i| theta[(i, a)] * x[i]).sum())
-        })
-        .collect();
+    let AtExponent { theta, left } = solve_at(thr, volts, &dist, expo).map_err(refuse)?;
     let n = rec.len().max(1) as f64;
     Ok(PerMotorFit {
         expo,
