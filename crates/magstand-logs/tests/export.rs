@@ -36,10 +36,9 @@ fn value(text: &str, name: &str) -> f64 {
         .unwrap_or_else(|| panic!("{name} not in\n{text}"))
 }
 
-#[test]
-fn a_linear_model_exports_its_own_slope_with_the_autopilots_units_and_signs() {
-    let k = [4.0, 10.0, -16.0]; // µT per unit throttle
-    let model = Model::new(
+/// A model of the overall throttle that is exactly the line `k x throttle` µT.
+fn throttle_line_model(k: [f64; 3]) -> Model {
+    Model::new(
         "line",
         throttle_input(),
         Vec3::new(20.0, 0.0, 45.0),
@@ -47,7 +46,13 @@ fn a_linear_model_exports_its_own_slope_with_the_autopilots_units_and_signs() {
             coefficients: std::array::from_fn(|a| vec![0.0, k[a]]),
         },
         None,
-    );
+    )
+}
+
+#[test]
+fn a_linear_model_exports_its_own_slope_with_the_autopilots_units_and_signs() {
+    let k = [4.0, 10.0, -16.0]; // µT per unit throttle
+    let model = throttle_line_model(k);
     let line = line_of(&model).unwrap();
     for a in 0..3 {
         assert!((line.slope[a] - k[a]).abs() < 1e-12, "{:?}", line.slope);
@@ -370,15 +375,7 @@ fn the_per_motor_set_is_refused_when_it_cannot_be_identified() {
 #[test]
 fn a_throttle_model_exports_a_line_per_ampere_over_a_recordings_rows() {
     let k = [4.0, 10.0, -16.0]; // µT per unit throttle
-    let model = Model::new(
-        "line",
-        throttle_input(),
-        Vec3::new(20.0, 0.0, 45.0),
-        Structure::Polynomial {
-            coefficients: std::array::from_fn(|a| vec![0.0, k[a]]),
-        },
-        None,
-    );
+    let model = throttle_line_model(k);
     // The recording's current is 50 A x throttle, so the slope per ampere is k / 50.
     let rec = flight_like_recording(1000, |r| 12.0 - r as f64 * 1e-3);
     let span = Span::Rows {

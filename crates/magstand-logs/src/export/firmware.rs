@@ -72,6 +72,19 @@ impl Parts {
     fn models(&self) -> usize {
         self.centers.len()
     }
+
+    /// `coef` as a nested initializer, `[axis][model][slope, intercept]`, with `open` and
+    /// `close` as the brackets (`{}` in C, `[]` in Rust).
+    fn coefficient_table(&self, open: &str, close: &str) -> String {
+        self.coef
+            .iter()
+            .map(|axis| {
+                let models = nested(axis.iter().map(|c| c.iter().copied()), open, close);
+                format!("{open}{models}{close}")
+            })
+            .collect::<Vec<_>>()
+            .join(", ")
+    }
 }
 
 /// Numbers in a form both C and Rust read back to the same double (shortest round trip).
@@ -100,15 +113,7 @@ fn nested<'a, I: IntoIterator<Item = f64>>(
 pub fn c_header(model: &Model) -> Result<String, LogsError> {
     let p = Parts::of(model)?;
     let m = p.models();
-    let coef = (0..3)
-        .map(|a| {
-            format!(
-                "{{{}}}",
-                nested(p.coef[a].iter().map(|c| c.iter().copied()), "{", "}")
-            )
-        })
-        .collect::<Vec<_>>()
-        .join(", ");
+    let coef = p.coefficient_table("{", "}");
     let mut h = format!(
         "/* magstand model (method {}, input {:?}) exported by magstand {}.\n\
          * magstand_dist(raw, out) writes the predicted disturbance in uT per axis (x, y, z) at a raw\n\
@@ -191,15 +196,7 @@ pub fn rust_module(model: &Model) -> Result<String, LogsError> {
     let p = Parts::of(model)?;
     let m = p.models();
     let k = p.knots.len();
-    let coef = (0..3)
-        .map(|a| {
-            format!(
-                "[{}]",
-                nested(p.coef[a].iter().map(|c| c.iter().copied()), "[", "]")
-            )
-        })
-        .collect::<Vec<_>>()
-        .join(", ");
+    let coef = p.coefficient_table("[", "]");
     let mut r = format!(
         "//! magstand model (method {}, input {:?}) exported by magstand {}.\n\
          //!\n\

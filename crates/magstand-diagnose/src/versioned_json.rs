@@ -1,0 +1,46 @@
+//! The diagnosis file and the augmented model file are both pretty JSON with a `format` name
+//! and a `version`: one reader refuses other formats and versions by name, one writer writes
+//! atomically.
+use std::path::Path;
+
+use serde::Serialize;
+use serde::de::DeserializeOwned;
+
+use crate::DiagnoseError;
+
+/// A malformed-file error for `path`.
+pub(crate) fn malformed(path: &Path, message: String) -> DiagnoseError {
+    DiagnoseError::Malformed {
+        path: path.to_path_buf(),
+        message,
+    }
+}
+
+/// Reads `path` as a `T` whose `(format, version)` (given by `head`) must be the expected ones.
+pub(crate) fn read<T: DeserializeOwned>(
+    path: &Path,
+    format: &str,
+    version: u32,
+    head: impl Fn(&T) -> (&str, u32),
+) -> Result<T, DiagnoseError> {
+    let text = std::fs::read_to_string(path).map_err(|source| DiagnoseError::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    let value: T = serde_json::from_str(&text).map_err(|e| malformed(path, e.to_string()))?;
+    let (f, v) = head(&value);
+    if f != format || v != version {
+        return Err(malformed(
+            path,
+            format!("format {f} version {v}: expected {format} version {version}"),
+        ));
+    }
+    Ok(value)
+}
+
+/// Writes `value` as pretty JSON, atomically.
+pub(crate) fn write<T: Serialize>(value: &T, path: &Path) -> Result<(), DiagnoseError> {
+    let text = serde_json::to_string_pretty(value).expect("plain data always serializes");
+    magstand_core::atomic_file::write_bytes(path, text.as_bytes())?;
+    Ok(())
+}
