@@ -1,7 +1,7 @@
 //! `magstand compensate`.
 use std::path::PathBuf;
 
-use anyhow::Result;
+use anyhow::{Context, Result};
 use clap::Args;
 
 use crate::files;
@@ -24,10 +24,9 @@ pub struct CompensateArgs {
     out: PathBuf,
 }
 
-/// The `format` a model file declares, if it is JSON with one.
-fn declared_format(path: &std::path::Path) -> Option<String> {
-    let text = std::fs::read_to_string(path).ok()?;
-    let v: serde_json::Value = serde_json::from_str(&text).ok()?;
+/// The `format` a model file's text declares, if it is JSON with one.
+fn declared_format(text: &str) -> Option<String> {
+    let v: serde_json::Value = serde_json::from_str(text).ok()?;
     v.get("format")?.as_str().map(String::from)
 }
 
@@ -42,8 +41,8 @@ fn print_truth(rmse_ut: Option<[f64; 3]>) {
 }
 
 /// Compensates with an augmented model from `magstand diagnose`.
-fn run_augmented(a: &CompensateArgs) -> Result<()> {
-    let model = magstand_diagnose::AugmentedModel::load(&a.model)?;
+fn run_augmented(a: &CompensateArgs, model_text: &str) -> Result<()> {
+    let model = magstand_diagnose::AugmentedModel::from_json(model_text, &a.model)?;
     let rec = recording_csv::read(&a.recording)?;
     let origin = a.recording.display().to_string();
     let out = model.compensate(&rec, &origin)?;
@@ -74,10 +73,13 @@ fn run_augmented(a: &CompensateArgs) -> Result<()> {
 /// Runs `magstand compensate`.
 pub fn run(a: CompensateArgs) -> Result<()> {
     files::refuse_overwriting_inputs(&[&a.model, &a.recording], &[&a.out])?;
-    if declared_format(&a.model).as_deref() == Some(magstand_diagnose::augmented_model::FORMAT) {
-        return run_augmented(&a);
+    // Read once: the declared format picks the reader.
+    let text = std::fs::read_to_string(&a.model)
+        .with_context(|| format!("reading the model {}", a.model.display()))?;
+    if declared_format(&text).as_deref() == Some(magstand_diagnose::augmented_model::FORMAT) {
+        return run_augmented(&a, &text);
     }
-    let model = Model::load(&a.model)?;
+    let model = Model::from_json(&text, &a.model.display().to_string())?;
     let rec = recording_csv::read(&a.recording)?;
     let out = model.compensate(&rec, &a.recording.display().to_string())?;
     files::ensure_parent(&a.out)?;

@@ -78,7 +78,16 @@ pub struct AugmentedModel {
 impl AugmentedModel {
     /// Reads a model file, refusing other formats and versions by name.
     pub fn load(path: &Path) -> Result<Self, DiagnoseError> {
-        let m: AugmentedModel = versioned_json::read(path, FORMAT, VERSION, |m: &Self| {
+        let text = std::fs::read_to_string(path).map_err(|source| DiagnoseError::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        Self::from_json(&text, path)
+    }
+
+    /// Parses a model from the JSON text of the file `path`.
+    pub fn from_json(text: &str, path: &Path) -> Result<Self, DiagnoseError> {
+        let m: AugmentedModel = versioned_json::parse(text, path, FORMAT, VERSION, |m: &Self| {
             (m.format.as_str(), m.version)
         })?;
         if m.columns.len() != m.coefficients.len()

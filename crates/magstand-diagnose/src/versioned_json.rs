@@ -27,7 +27,18 @@ pub(crate) fn read<T: DeserializeOwned>(
         path: path.to_path_buf(),
         source,
     })?;
-    let value: T = serde_json::from_str(&text).map_err(|e| malformed(path, e.to_string()))?;
+    parse(&text, path, format, version, head)
+}
+
+/// Parses `text`, read from `path`, as [`read`] does.
+pub(crate) fn parse<T: DeserializeOwned>(
+    text: &str,
+    path: &Path,
+    format: &str,
+    version: u32,
+    head: impl Fn(&T) -> (&str, u32),
+) -> Result<T, DiagnoseError> {
+    let value: T = serde_json::from_str(text).map_err(|e| malformed(path, e.to_string()))?;
     let (f, v) = head(&value);
     if f != format || v != version {
         return Err(malformed(
