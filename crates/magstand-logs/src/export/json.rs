@@ -28,15 +28,13 @@ use std::collections::BTreeMap;
 use magstand_ident::{InputKind, Model};
 
 use super::per_motor::PerMotorFit;
-use super::{LineInput, LinearFit};
+use super::{LineInput, LinearFit, Samples, range_samples};
 use crate::LogsError;
 
 /// Format name of the document.
 pub const FORMAT: &str = "magstand-export";
 /// Document version.
 pub const VERSION: u32 = 1;
-
-const TABLE_POINTS: usize = 201;
 
 #[derive(Serialize)]
 struct Document<'a> {
@@ -92,20 +90,7 @@ pub fn export_json(
     line: &LinearFit,
     per_motor: Option<&PerMotorFit>,
 ) -> Result<String, LogsError> {
-    let hi = model.input.hi;
-    if !(hi.is_finite() && hi > 0.0) {
-        return Err(LogsError::Export(format!(
-            "the model's input range ends at {hi}; the table needs a positive range"
-        )));
-    }
-    let input: Vec<f64> = (0..TABLE_POINTS)
-        .map(|i| hi * i as f64 / (TABLE_POINTS - 1) as f64)
-        .collect();
-    let mut s = model.scratch();
-    let dist: Vec<_> = input
-        .iter()
-        .map(|&r| model.dist_at_input(r, &mut s))
-        .collect();
+    let Samples { x: input, dist } = range_samples(model, "the table")?;
     let column = |v: &[magstand_core::Vec3], a: usize| v.iter().map(|d| d[a]).collect::<Vec<_>>();
     let sd = model.sd.as_ref().map(|m| {
         let v: Vec<_> = input

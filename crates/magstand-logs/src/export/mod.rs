@@ -120,6 +120,23 @@ pub(crate) fn worst_heading_deg(model: &Model, n: usize, left: impl Fn(usize) ->
         .fold(0.0, f64::max)
 }
 
+/// The model at [`GRID`] evenly spaced raw inputs from zero to the top of its recorded range;
+/// `purpose` names what needs them in the error for an empty range.
+pub(crate) fn range_samples(model: &Model, purpose: &str) -> Result<Samples, LogsError> {
+    let hi = model.input.hi;
+    if !(hi.is_finite() && hi > 0.0) {
+        return Err(LogsError::Export(format!(
+            "the model's input range ends at {hi}; {purpose} needs a positive range"
+        )));
+    }
+    let mut s = model.scratch();
+    let x: Vec<f64> = (0..GRID)
+        .map(|i| hi * i as f64 / (GRID - 1) as f64)
+        .collect();
+    let dist = x.iter().map(|&v| model.dist_at_input(v, &mut s)).collect();
+    Ok(Samples { x, dist })
+}
+
 fn samples(model: &Model, input: LineInput, span: Span) -> Result<Samples, LogsError> {
     match span {
         Span::ModelRange => {
@@ -137,18 +154,7 @@ fn samples(model: &Model, input: LineInput, span: Span) -> Result<Samples, LogsE
                     }
                 )));
             }
-            let range_max = model.input.hi;
-            if !(range_max.is_finite() && range_max > 0.0) {
-                return Err(LogsError::Export(format!(
-                    "the model's input range ends at {range_max}; a line needs a positive range"
-                )));
-            }
-            let mut s = model.scratch();
-            let x: Vec<f64> = (0..GRID)
-                .map(|i| range_max * i as f64 / (GRID - 1) as f64)
-                .collect();
-            let dist = x.iter().map(|&v| model.dist_at_input(v, &mut s)).collect();
-            Ok(Samples { x, dist })
+            range_samples(model, "a line")
         }
         Span::Rows { recording, origin } => {
             model
