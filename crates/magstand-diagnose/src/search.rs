@@ -306,15 +306,45 @@ fn fit_model(
     Ok((built, fitted, w))
 }
 
-/// The moment within each interval at which logged command changes take effect, searched in
-/// 0..1 on the baseline.
-fn calibrate_timing(ctx: &Context, terms: &[Term]) -> f64 {
+/// Passes of the coordinate search in [`refine`].
+const REFINE_PASSES: usize = 2;
+
+/// Refits the nonlinear parameters of all accepted terms and the command lead together, by
+/// coordinate search: each term's parameters (over its whole search range) with the others
+/// held, then the lead, [`REFINE_PASSES`] times.
+fn refine(ctx: &mut Context, terms: &mut [Term], weights: &Weights) {
     let y = &ctx.rec.mag_ut;
-    let unit = Weights(vec![[1.0; 3]; y.len()]);
+    for _ in 0..REFINE_PASSES {
+        for k in 0..terms.len() {
+            let searches = terms[k].effect.search(ctx);
+            if searches.is_empty() {
+                continue;
+            }
+            let chi2 = |theta: &[f64]| {
+                let mut refs = as_refs(terms);
+                refs[k].1 = theta;
+                let b = build(ctx, &refs);
+                fit(&b.design, y, Some(&b.fixed), weights, &ctx.split.holdout)
+                    .ok()
+                    .map(|f| f.chi2_fit)
+            };
+            if let Some(opt) = minimize(&searches, chi2) {
+                terms[k].theta = opt.theta;
+                terms[k].theta_sd = opt.sd;
+            }
+        }
+        ctx.command_lead = calibrate_timing(ctx, terms, weights);
+    }
+}
+
+/// The moment within each interval at which logged command changes take effect, searched in
+/// 0..1.
+fn calibrate_timing(ctx: &Context, terms: &[Term], weights: &Weights) -> f64 {
+    let y = &ctx.rec.mag_ut;
     let refs = as_refs(terms);
     let chi2 = |lead: f64| {
         let b = build_with_lead(ctx, &refs, lead);
-        fit(&b.design, y, Some(&b.fixed), &unit, &ctx.split.holdout)
+        fit(&b.design, y, Some(&b.fixed), weights, &ctx.split.holdout)
             .ok()
             .map(|f| f.chi2_fit)
     };
@@ -405,7 +435,7 @@ pub fn diagnose(
         command_lead: 0.5,
     };
     let mut ctx = ctx;
-    ctx.command_lead = calibrate_timing(&ctx, &[]);
+    ctx.command_lead = calibrate_timing(&ctx, &[], &Weights(vec![[1.0; 3]; rec.len()]));
     let base_lead = ctx.command_lead;
     let rows = Rows::new(rec, &split.block);
     let y = &rec.mag_ut;
@@ -496,8 +526,10 @@ pub fn diagnose(
             theta,
             theta_sd,
         });
-        // A delay or a lag changes which moment of the interval fits best.
-        ctx.command_lead = calibrate_timing(&ctx, &terms);
+        // The new term was fitted with the others' parameters held; they and the moment of
+        // the interval at which commands act are refitted with it, so that the misfit a
+        // held parameter leaves is not offered to the next round as a new effect.
+        refine(&mut ctx, &mut terms, w);
         let (_, f, w2) = fit_model(&ctx, &terms, Some(w))?;
         current = (f, w2);
         round.accepted = accepted;

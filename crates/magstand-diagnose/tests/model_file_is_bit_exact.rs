@@ -1,0 +1,50 @@
+//! Regression: an augmented model read back from its file differed from the one written in
+//! the last bit of a coefficient (1.7170400262418501 came back as 1.71704002624185), because
+//! serde_json's default float parser is fast but not correctly rounded. A model file must
+//! reproduce the model exactly, or `compensate` from the file and from memory disagree. The
+//! workspace now enables serde_json's `float_roundtrip`.
+use magstand_diagnose::augmented_model::{AugmentedModel, AugmentedTerm, FORMAT, VERSION};
+
+#[test]
+fn coefficients_survive_the_file_bit_for_bit() {
+    // The value that broke, and others whose shortest decimal form needs 17 digits.
+    let hard = [
+        1.7170400262418501,
+        0.1 + 0.2,
+        1.0 / 3.0,
+        2.0_f64.sqrt(),
+        -5.125437975815636e-7,
+    ];
+    let model = AugmentedModel {
+        format: FORMAT.into(),
+        version: VERSION,
+        recording: "seen.csv".into(),
+        nominal_scenario: String::new(),
+        command_lead: 0.26585140122570994,
+        block_s: 0.5,
+        holdout_every: 3,
+        effects: vec![AugmentedTerm {
+            name: "current_lag".into(),
+            theta: vec![0.28740422209046457],
+        }],
+        columns: (0..hard.len()).map(|i| format!("c{i}")).collect(),
+        coefficients: hard.iter().map(|&c| [c, -c, c * 1e3]).collect(),
+    };
+    let path = std::env::temp_dir().join(format!("magstand-bit-exact-{}.json", std::process::id()));
+    model.save(&path).unwrap();
+    let back = AugmentedModel::load(&path);
+    std::fs::remove_file(&path).ok();
+    let back = back.unwrap();
+    for (a, b) in model.coefficients.iter().zip(&back.coefficients) {
+        for k in 0..3 {
+            assert_eq!(
+                a[k].to_bits(),
+                b[k].to_bits(),
+                "wrote {:e}, read {:e}",
+                a[k],
+                b[k]
+            );
+        }
+    }
+    assert_eq!(model, back);
+}
