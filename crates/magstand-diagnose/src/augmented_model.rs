@@ -12,9 +12,20 @@
 //!   "block_s": 2.0, "holdout_every": 3,   // the diagnosis's time blocks
 //!   "effects": [{"name": "current_lag", "theta": [0.3]}, ...],   // in order of acceptance
 //!   "columns": ["reference", "driven", "speed^1", ...],          // regressor names
-//!   "coefficients": [[x, y, z], ...]      // µT per unit of each column
+//!   "coefficients": [[x, y, z], ...],     // µT per unit of each column
+//!   "noise": {                            // optional (absent in older files)
+//!     "variance_ut2": [[c0x, c0y, c0z], [c1x, ...], [c2x, ...]],
+//!     "floor_ut2": [x, y, z],
+//!     "full_load_a": 48.0
+//!   }
 //! }
 //! ```
+//!
+//! `noise` is the variance of what the model leaves on the diagnosed recording's held-out rows
+//! (what it promises for a recording it has not seen), growing with the load (eq. 8):
+//! `max(c0 + c1 q + c2 q², floor)` µT² per axis, with `q` the motor current (total current
+//! less the avionics) over `full_load_a`, the largest motor current of the diagnosed
+//! recording. `compensate` writes its square root as `sd_{x,y,z}_ut`.
 //!
 //! To predict, the recording's commands are replayed through the nominal stand with the
 //! effects' nonlinear parameters (`theta`) applied, the same regressor columns are built and
@@ -73,6 +84,40 @@ pub struct AugmentedModel {
     pub columns: Vec<String>,
     /// Coefficient of each column per axis, µT per unit.
     pub coefficients: Vec<[f64; 3]>,
+    /// Noise variance law of the residual; `None` in files written before it was stored.
+    #[serde(default)]
+    pub noise: Option<NoiseLaw>,
+}
+
+/// Residual noise variance growing with the load: `max(c0 + c1 q + c2 q², floor)` per axis.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct NoiseLaw {
+    /// Rows c0, c1, c2; each per axis x, y, z; µT².
+    pub variance_ut2: [[f64; 3]; 3],
+    /// Lowest variance per axis, µT².
+    pub floor_ut2: [f64; 3],
+    /// Motor current that `q = 1` stands for, A.
+    pub full_load_a: f64,
+}
+
+impl NoiseLaw {
+    /// Noise sd per axis at a motor current of `load_a`, µT.
+    pub fn sd_ut(&self, load_a: f64) -> Vec3 {
+        let q = load_a / self.full_load_a;
+        let c = &self.variance_ut2;
+        Vec3::from(std::array::from_fn::<f64, 3, _>(|a| {
+            (c[0][a] + c[1][a] * q + c[2][a] * q * q)
+                .max(self.floor_ut2[a])
+                .sqrt()
+        }))
+    }
+
+    fn is_valid(&self) -> bool {
+        self.full_load_a.is_finite()
+            && self.full_load_a > 0.0
+            && self.variance_ut2.iter().flatten().all(|c| c.is_finite())
+            && self.floor_ut2.iter().all(|f| f.is_finite() && *f > 0.0)
+    }
 }
 
 impl AugmentedModel {
@@ -98,6 +143,12 @@ impl AugmentedModel {
                 "expected one finite coefficient triple per column".into(),
             ));
         }
+        if m.noise.as_ref().is_some_and(|n| !n.is_valid()) {
+            return Err(versioned_json::malformed(
+                path,
+                "`noise` expects finite variance coefficients, positive floors and a positive full_load_a".into(),
+            ));
+        }
         Ok(m)
     }
 
@@ -108,6 +159,28 @@ impl AugmentedModel {
 
     /// Predicted disturbance at every row of `rec` (named `origin` in errors), µT.
     pub fn dist_column(&self, rec: &Recording, origin: &str) -> Result<Vec<Vec3>, DiagnoseError> {
+        Ok(self.predict(rec, origin)?.0)
+    }
+
+    /// Predicted noise sd at every row of `rec`, µT; `None` when the file has no noise law.
+    pub fn sd_column(
+        &self,
+        rec: &Recording,
+        origin: &str,
+    ) -> Result<Option<Vec<Vec3>>, DiagnoseError> {
+        let (_, load_a) = self.predict(rec, origin)?;
+        Ok(self
+            .noise
+            .as_ref()
+            .map(|n| load_a.iter().map(|&l| n.sd_ut(l)).collect()))
+    }
+
+    /// The disturbance (µT) and the motor current (A) at every row.
+    fn predict(
+        &self,
+        rec: &Recording,
+        origin: &str,
+    ) -> Result<(Vec<Vec3>, Vec<f64>), DiagnoseError> {
         rec.check()?;
         let bad = |message: String| DiagnoseError::Recording {
             origin: origin.into(),
@@ -157,29 +230,90 @@ impl AugmentedModel {
             .iter()
             .position(|c| c == "reference")
             .map_or(Vec3::zeros(), |i| Vec3::from(self.coefficients[i]));
-        Ok(built
+        let dist = built
             .design
             .predict(&self.coefficients)
             .into_iter()
             .zip(&built.fixed)
             .map(|(p, f)| p + f - reference)
-            .collect())
+            .collect();
+        Ok((dist, built.load_a()))
     }
 
     /// The recording with the predicted disturbance removed from `mag_*_ut` and the columns
-    /// `dist_{x,y,z}_ut` added (replacing any of that name).
+    /// `dist_{x,y,z}_ut` (and `sd_{x,y,z}_ut` when the model has a noise law) added; any columns
+    /// of those names already present are dropped.
     pub fn compensate(&self, rec: &Recording, origin: &str) -> Result<Recording, DiagnoseError> {
-        let dist = self.dist_column(rec, origin)?;
+        let (dist, load_a) = self.predict(rec, origin)?;
         let mut out = rec.clone();
         for (m, d) in out.mag_ut.iter_mut().zip(&dist) {
             *m -= d;
         }
-        for (a, axis) in AXES.iter().enumerate() {
-            let name = format!("dist_{axis}_ut");
-            out.extra.retain(|(n, _)| *n != name);
-            out.extra
-                .push((name, dist.iter().map(|d| format_extra(d[a])).collect()));
+        let sd: Option<Vec<Vec3>> = self
+            .noise
+            .as_ref()
+            .map(|n| load_a.iter().map(|&l| n.sd_ut(l)).collect());
+        // Stale columns of an earlier compensation go, whether or not they are rewritten.
+        out.extra.retain(|(n, _)| {
+            !["dist", "sd"]
+                .iter()
+                .any(|k| AXES.iter().any(|a| *n == format!("{k}_{a}_ut")))
+        });
+        for (kind, values) in [("dist", Some(&dist)), ("sd", sd.as_ref())] {
+            let Some(values) = values else { continue };
+            for (a, axis) in AXES.iter().enumerate() {
+                out.extra.push((
+                    format!("{kind}_{axis}_ut"),
+                    values.iter().map(|v| format_extra(v[a])).collect(),
+                ));
+            }
         }
         Ok(out)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn file(noise: &str) -> String {
+        format!(
+            r#"{{"format": "{FORMAT}", "version": {VERSION}, "recording": "r.csv",
+                "nominal_scenario": "", "command_lead": 0.5, "block_s": 2.0,
+                "holdout_every": 3, "effects": [], "columns": ["reference"],
+                "coefficients": [[1.0, 2.0, 3.0]]{noise}}}"#
+        )
+    }
+
+    #[test]
+    fn noise_law_is_optional_and_checked() {
+        let path = Path::new("A.json");
+        // Files written before the noise law was stored still load.
+        assert_eq!(
+            AugmentedModel::from_json(&file(""), path).unwrap().noise,
+            None
+        );
+        let law = |full: &str| {
+            file(&format!(
+                r#", "noise": {{"variance_ut2": [[0.04, 0.04, 0.04], [0.0, 0.0, 0.0], [0.32, 0.32, 0.32]],
+                    "floor_ut2": [0.01, 0.01, 0.01], "full_load_a": {full}}}"#
+            ))
+        };
+        let m = AugmentedModel::from_json(&law("40.0"), path).unwrap();
+        let n = m.noise.unwrap();
+        // sqrt(0.04) at rest, sqrt(0.04 + 0.32 * 0.25) = sqrt(0.12) at half load.
+        assert!((n.sd_ut(0.0).x - 0.2).abs() < 1e-12, "{:?}", n.sd_ut(0.0));
+        assert!(
+            (n.sd_ut(20.0).z - 0.12f64.sqrt()).abs() < 1e-12,
+            "{:?}",
+            n.sd_ut(20.0)
+        );
+        let err = AugmentedModel::from_json(&law("0.0"), path)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains("A.json") && err.contains("full_load_a"),
+            "{err}"
+        );
     }
 }

@@ -169,6 +169,16 @@ impl VarianceModel {
         VarianceModel { coef, floor }
     }
 
+    /// The law as stored in a model file, with the motor current `full_load_a` that `q = 1`
+    /// stands for.
+    pub fn to_noise(&self, full_load_a: f64) -> crate::augmented_model::NoiseLaw {
+        crate::augmented_model::NoiseLaw {
+            variance_ut2: self.coef,
+            floor_ut2: self.floor,
+            full_load_a,
+        }
+    }
+
     /// Variance at load `q`, per axis.
     pub fn at(&self, q: f64) -> [f64; 3] {
         std::array::from_fn(|a| {

@@ -38,7 +38,16 @@ pub(crate) struct Built {
     pub(crate) fixed: Vec<Vec3>,
     /// Motor current over its largest value: the load the noise variance grows with.
     load: Vec<f64>,
+    /// The largest motor current, A (`load` 1).
+    full_load_a: f64,
     term_columns: Vec<std::ops::Range<usize>>,
+}
+
+impl Built {
+    /// Motor current at every row, A.
+    pub(crate) fn load_a(&self) -> Vec<f64> {
+        self.load.iter().map(|q| q * self.full_load_a).collect()
+    }
 }
 
 fn build(ctx: &Context, terms: &[(&dyn Effect, &[f64])]) -> Built {
@@ -82,6 +91,7 @@ pub(crate) fn build_with_lead(ctx: &Context, terms: &[(&dyn Effect, &[f64])], le
             .iter()
             .map(|a| (a - avionics) / max_a)
             .collect(),
+        full_load_a: max_a,
         term_columns,
     }
 }
@@ -269,12 +279,21 @@ fn try_candidate(
     }
 }
 
+/// A model of some terms, fitted with weights from its own residuals.
+struct ModelFit {
+    built: Built,
+    fitted: Fitted,
+    weights: Weights,
+    /// The residual variance law on the held-out rows.
+    noise: VarianceModel,
+}
+
 /// Fits the model of `terms` with weights from its own residuals (one reweighting pass).
 fn fit_model(
     ctx: &Context,
     terms: &[Term],
     weights: Option<&Weights>,
-) -> Result<(Built, Fitted, Weights), DiagnoseError> {
+) -> Result<ModelFit, DiagnoseError> {
     let y = &ctx.rec.mag_ut;
     let built = build(ctx, &as_refs(terms));
     let singular = |e: magstand_ident::least_squares::SolveError| DiagnoseError::Singular {
@@ -303,7 +322,16 @@ fn fit_model(
     let w = var.weights(q, &timing_spread(ctx, terms, &first.coef));
     let fitted =
         fit(&built.design, y, Some(&built.fixed), &w, &ctx.split.holdout).map_err(singular)?;
-    Ok((built, fitted, w))
+    // What a model file promises for a new recording is the error on rows the fit did not
+    // see, so its noise law comes from the held-out rows (the weights above must not).
+    let skip_identification: Vec<bool> = ctx.split.holdout.iter().map(|h| !h).collect();
+    let noise = VarianceModel::fit(&fitted.residuals(y), q, &skip_identification);
+    Ok(ModelFit {
+        built,
+        fitted,
+        weights: w,
+        noise,
+    })
 }
 
 /// Passes of the coordinate search in [`refine`].
@@ -442,7 +470,12 @@ pub fn diagnose(
     let all_rows = vec![true; rec.len()];
 
     // Baseline.
-    let (base_built, base_fit, base_w) = fit_model(&ctx, &[], None)?;
+    let ModelFit {
+        built: base_built,
+        fitted: base_fit,
+        weights: base_w,
+        noise: base_noise,
+    } = fit_model(&ctx, &[], None)?;
     let base_resid = base_fit.residuals(y);
     let base_rmse = holdout_rmse(&base_resid, &split.holdout);
     let base_z = standardized(&base_resid, &base_w);
@@ -530,15 +563,20 @@ pub fn diagnose(
         // the interval at which commands act are refitted with it, so that the misfit a
         // held parameter leaves is not offered to the next round as a new effect.
         refine(&mut ctx, &mut terms, w);
-        let (_, f, w2) = fit_model(&ctx, &terms, Some(w))?;
-        current = (f, w2);
+        let m = fit_model(&ctx, &terms, Some(w))?;
+        current = (m.fitted, m.weights);
         round.accepted = accepted;
         rounds.push(round);
     }
 
     // Final joint model; the accepted effects switched on with its values in the augmented
     // scenario, which also gives their parameters.
-    let (final_built, final_fit, final_w) = fit_model(&ctx, &terms, Some(&current.1))?;
+    let ModelFit {
+        built: final_built,
+        fitted: final_fit,
+        weights: final_w,
+        noise: final_noise,
+    } = fit_model(&ctx, &terms, Some(&current.1))?;
     let mut augmented = scenario.clone();
     for (t, (report, cols)) in terms
         .iter()
@@ -555,28 +593,36 @@ pub fn diagnose(
             },
         );
     }
-    let as_model = |terms: &[Term], built: &Built, fitted: &Fitted, lead: f64| {
-        crate::augmented_model::AugmentedModel {
-            format: crate::augmented_model::FORMAT.into(),
-            version: crate::augmented_model::VERSION,
-            recording: origin.into(),
-            nominal_scenario: nominal.to_toml(),
-            command_lead: lead,
-            block_s: split.block_s,
-            holdout_every: cfg.holdout_every,
-            effects: terms
-                .iter()
-                .map(|t| crate::augmented_model::AugmentedTerm {
-                    name: t.effect.name().into(),
-                    theta: t.theta.clone(),
-                })
-                .collect(),
-            columns: built.design.names.clone(),
-            coefficients: fitted.coef.clone(),
-        }
-    };
-    let model = as_model(&terms, &final_built, &final_fit, ctx.command_lead);
-    let baseline_model = as_model(&[], &base_built, &base_fit, base_lead);
+    let as_model =
+        |terms: &[Term], built: &Built, fitted: &Fitted, noise: &VarianceModel, lead: f64| {
+            crate::augmented_model::AugmentedModel {
+                format: crate::augmented_model::FORMAT.into(),
+                version: crate::augmented_model::VERSION,
+                recording: origin.into(),
+                nominal_scenario: nominal.to_toml(),
+                command_lead: lead,
+                block_s: split.block_s,
+                holdout_every: cfg.holdout_every,
+                effects: terms
+                    .iter()
+                    .map(|t| crate::augmented_model::AugmentedTerm {
+                        name: t.effect.name().into(),
+                        theta: t.theta.clone(),
+                    })
+                    .collect(),
+                columns: built.design.names.clone(),
+                coefficients: fitted.coef.clone(),
+                noise: Some(noise.to_noise(built.full_load_a)),
+            }
+        };
+    let model = as_model(
+        &terms,
+        &final_built,
+        &final_fit,
+        &final_noise,
+        ctx.command_lead,
+    );
+    let baseline_model = as_model(&[], &base_built, &base_fit, &base_noise, base_lead);
     let final_resid = final_fit.residuals(y);
     let final_z = standardized(&final_resid, &final_w);
     let final_white = whiteness(&final_z, &split);

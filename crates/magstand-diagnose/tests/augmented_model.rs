@@ -84,6 +84,40 @@ fn the_augmented_model_predicts_a_new_recording_of_the_same_stand() {
     }
     assert!(comp.extra.iter().any(|(n, _)| n == "dist_z_ut"));
 
+    // The noise sd it writes is the noise that is left: the compensated reading minus the true
+    // field, divided by it, has unit variance per axis (eq. 8's variance growing with the
+    // load, fitted on the other recording), and it follows the simulator's true sd.
+    let sd = model.sd_column(&new, "new.csv").unwrap().unwrap();
+    let field = &new.truth.as_ref().unwrap().field_ut;
+    let true_sd = &new.truth.as_ref().unwrap().sd_ut;
+    for a in 0..3 {
+        let z2: f64 = (0..new.len())
+            .map(|r| ((comp.mag_ut[r][a] - field[r][a]) / sd[r][a]).powi(2))
+            .sum::<f64>()
+            / new.len() as f64;
+        let ratio: f64 = (0..new.len())
+            .map(|r| sd[r][a] / true_sd[r][a])
+            .sum::<f64>()
+            / new.len() as f64;
+        assert!(
+            (0.8..1.25).contains(&z2) && (0.8..1.25).contains(&ratio),
+            "axis {a}: mean squared standardized residual {z2:.3}, predicted over true sd {ratio:.3}"
+        );
+    }
+    let written: Vec<f64> = comp
+        .extra
+        .iter()
+        .find(|(n, _)| n == "sd_x_ut")
+        .map(|(_, v)| v.iter().map(|c| c.parse().unwrap()).collect())
+        .unwrap();
+    let mid = new.len() / 2;
+    assert!(
+        (written[mid] - sd[mid].x).abs() < 1e-6,
+        "{} against {}",
+        written[mid],
+        sd[mid].x
+    );
+
     // A model of a quad cannot serve a hexa's recording.
     let mut six = new.clone();
     six.thr.push(six.thr[0].clone());

@@ -3,7 +3,9 @@
 //! serde_json's default float parser is fast but not correctly rounded. A model file must
 //! reproduce the model exactly, or `compensate` from the file and from memory disagree. The
 //! workspace now enables serde_json's `float_roundtrip`.
-use magstand_diagnose::augmented_model::{AugmentedModel, AugmentedTerm, FORMAT, VERSION};
+use magstand_diagnose::augmented_model::{
+    AugmentedModel, AugmentedTerm, FORMAT, NoiseLaw, VERSION,
+};
 
 #[test]
 fn coefficients_survive_the_file_bit_for_bit() {
@@ -29,6 +31,15 @@ fn coefficients_survive_the_file_bit_for_bit() {
         }],
         columns: (0..hard.len()).map(|i| format!("c{i}")).collect(),
         coefficients: hard.iter().map(|&c| [c, -c, c * 1e3]).collect(),
+        noise: Some(NoiseLaw {
+            variance_ut2: [
+                [hard[0], hard[1], hard[2]],
+                [hard[3], hard[4], 0.0],
+                [0.0; 3],
+            ],
+            floor_ut2: [hard[1], hard[2], hard[3]],
+            full_load_a: 47.123456789012345,
+        }),
     };
     let path = std::env::temp_dir().join(format!("magstand-bit-exact-{}.json", std::process::id()));
     model.save(&path).unwrap();
