@@ -39,7 +39,7 @@ enum Command {
     /// Locate a mismatch between a recording and the nominal simulation, name the physics left
     /// out, model it, and show the fit improve.
     Diagnose(diagnose_cmd::DiagnoseArgs),
-    /// Export a model as PX4 or ArduPilot parameters, or as a C header.
+    /// Export a model as PX4 or ArduPilot parameters, a C header, a Rust module or a JSON table.
     Export(export_cmd::ExportArgs),
     /// A PX4 ULog or ArduPilot DataFlash log as a recording (magnetometer, motors, battery,
     /// attitude, armed and landed state), with its segments, gaps and resets reported.
@@ -53,6 +53,13 @@ enum Command {
 }
 
 fn main() -> ExitCode {
+    // `magstand fit ... | head` closes stdout early. Rust ignores SIGPIPE, so the next print
+    // would panic; a command-line tool should end quietly as `cat` does.
+    #[cfg(unix)]
+    // SAFETY: called first in main, before any thread exists; SIG_DFL is a valid disposition.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    }
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Simulate(a) => simulate_cmd::run(a),
