@@ -75,25 +75,41 @@ pub fn run(a: DiagnoseArgs) -> Result<()> {
         .build()
         .context("starting the worker threads")?;
     let d = pool.install(|| diagnose(&rec, &name, &nominal, &config))?;
-    print!("{}", d.summary());
+    // Every file first, then the terminal: a reader that closes stdout early must not cost
+    // an output.
+    let mut wrote = Vec::new();
     if let Some(p) = &a.json {
+        files::ensure_parent(p)?;
         d.save(p)?;
-        println!("wrote {}", p.display());
+        wrote.push(p.clone());
     }
     if let Some(p) = &a.augmented {
+        files::ensure_parent(p)?;
         magstand_core::atomic_file::write_bytes(p, d.augmented_scenario.as_bytes())?;
-        println!("wrote {}", p.display());
+        wrote.push(p.clone());
     }
     if let (Some(p), Some(m)) = (&a.model_out, &d.model) {
+        files::ensure_parent(p)?;
         m.save(p)?;
-        println!("wrote {}", p.display());
+        wrote.push(p.clone());
     }
     if let Some(dir) = &a.report {
         let mut prov = crate::report_cmd::provenance();
         prov.push(("recording".into(), name.clone()));
         prov.push(("nominal scenario".into(), nominal.origin().into()));
-        let page = crate::report_cmd::write_report(&rec, &name, None, Some(&d), None, prov, dir)?;
-        println!("wrote {}", page.display());
+        wrote.push(crate::report_cmd::write_report(
+            &rec,
+            &name,
+            None,
+            Some(&d),
+            None,
+            prov,
+            dir,
+        )?);
+    }
+    print!("{}", d.summary());
+    for p in wrote {
+        println!("wrote {}", p.display());
     }
     Ok(())
 }

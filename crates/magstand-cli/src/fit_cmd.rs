@@ -126,7 +126,7 @@ fn take_out_earth_field(
     earth: EarthArg,
     rec: &magstand_core::Recording,
     origin: &str,
-) -> Result<magstand_core::Recording> {
+) -> Result<(magstand_core::Recording, String)> {
     use magstand_ident::flight::{EarthField, FlightConfig, FlightInput, prepare_flight};
     let field = match earth {
         EarthArg::Fit => EarthField::Fit,
@@ -149,7 +149,7 @@ fn take_out_earth_field(
     };
     let p = prepare_flight(rec, &cfg, origin)?;
     let e = p.earth_ned_ut;
-    println!(
+    let summary = format!(
         "Earth field ({}): N {:.2} E {:.2} D {:.2} uT (|e| {:.2} uT, inclination {:.1} deg); magnetometer {:.3} s behind the {}; stacked-fit residual {:.2} uT RMS; attitude: tilt up to {:.0} deg, {:.0} deg of heading covered",
         match earth {
             EarthArg::Fit => "fitted",
@@ -172,7 +172,7 @@ fn take_out_earth_field(
     for w in &p.warnings {
         eprintln!("warning: {w}");
     }
-    Ok(p.recording)
+    Ok((p.recording, summary))
 }
 
 /// The fit settings the arguments describe.
@@ -301,14 +301,21 @@ pub fn run(a: FitArgs) -> Result<()> {
     files::refuse_overwriting_inputs(&[&a.recording], &[&a.model_out])?;
     let mut rec = recording_csv::read(&a.recording)?;
     let origin = a.recording.display().to_string();
+    // Printed after the model is written: a reader that closes stdout early must not cost it.
+    let mut earth_summary = None;
     if let Some(earth) = a.earth {
-        rec = take_out_earth_field(&a, earth, &rec, &origin)?;
+        let (taken_out, summary) = take_out_earth_field(&a, earth, &rec, &origin)?;
+        rec = taken_out;
+        earth_summary = Some(summary);
     }
     let model = cfg.fit_recording(&rec, &origin)?;
     files::ensure_parent(&a.model_out)?;
     model
         .save(&a.model_out)
         .with_context(|| format!("writing {}", a.model_out.display()))?;
+    if let Some(s) = earth_summary {
+        println!("{s}");
+    }
     print_summary(&model);
     print_compatibility(&model, &rec, &origin)?;
     println!("wrote {}", a.model_out.display());

@@ -66,6 +66,7 @@ pub fn run(a: SimulateArgs) -> Result<()> {
     );
     recording_csv::write(&rec, &rec_path)?;
     atomic_file::write_bytes(&scn_path, resolved.as_bytes())?;
+    let mut logs = Vec::new();
     if a.logs {
         let opts = LogWriteOptions {
             // A stand turned by the gimbal stands in for a flight.
@@ -80,8 +81,12 @@ pub fn run(a: SimulateArgs) -> Result<()> {
             } else {
                 write_dataflash(&rec, &path, &opts)?;
             }
-            println!("wrote {}", path.display());
+            logs.push(path);
         }
+    }
+    // Files first, then the terminal (a reader that closes stdout early must not cost one).
+    for path in logs {
+        println!("wrote {}", path.display());
     }
     println!(
         "wrote {} ({} rows, {:.1} s) and {}",

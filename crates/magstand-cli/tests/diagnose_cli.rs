@@ -33,10 +33,11 @@ fn a_delayed_magnetometer_stream_is_named_and_the_outputs_are_written() {
         "late",
         &["logging.mag_delay_s=0.1", "magnetometer.odr_hz=50.0"],
     );
-    let json = dir.path().join("d.json");
-    let aug = dir.path().join("aug.toml");
+    // Output folders that do not exist yet are made.
+    let json = dir.path().join("new/d.json");
+    let aug = dir.path().join("new/aug.toml");
     let report = dir.path().join("report");
-    let model = dir.path().join("a.json");
+    let model = dir.path().join("models/a.json");
     let r = magstand(&[
         "diagnose",
         "--recording",
