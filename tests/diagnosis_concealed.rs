@@ -30,6 +30,11 @@ fn an_effect_free_recording_with_power_and_temperature_columns_comes_out_clean()
 }
 
 #[test]
+fn a_stand_unlike_the_nominal_in_its_constants_comes_out_clean() {
+    assert_found(&case("control, constants unlike the nominal (100 Hz)", 16));
+}
+
+#[test]
 fn a_slow_spin_up_is_named_current_lag_with_its_time_constant() {
     assert_found(&case("current_lag", 12));
 }

@@ -25,6 +25,7 @@ fn main() {
             );
             if std::env::var("VERBOSE").is_ok() {
                 for r in &o.diagnosis.rounds {
+                    eprintln!("    residual whiteness p {:?}", r.whiteness_p);
                     for c in &r.candidates {
                         eprintln!(
                             "    {:16} gain {:?} p {:?}",

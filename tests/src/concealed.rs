@@ -78,6 +78,24 @@ pub fn cases() -> Vec<Case> {
             vec!["logging.record_power=true", "logging.record_temp=true"],
             vec![],
         ),
+        // The nominal scenario is a description, never exact: a stand whose motors, wiring,
+        // noise, heading and sampling rate all differ from it, with no catalog effect, must
+        // still come out clean (the calibration absorbs what is linear in the nominal
+        // regressors; what is not must not be forced onto a name).
+        case(
+            "control, constants unlike the nominal (100 Hz)",
+            &[],
+            vec![
+                "magnetometer.odr_hz=100.0",
+                "motors.kv_rpm_per_v=1000.0",
+                "motors.winding_resistance_ohm=0.2",
+                "motors.idle_current_a=0.8",
+                "disturbance.scale=1.4",
+                "noise.sensor_sd_ut=0.25",
+                "stand.heading_deg=120.0",
+            ],
+            vec![],
+        ),
         Case {
             supply: BATTERY,
             ..case(

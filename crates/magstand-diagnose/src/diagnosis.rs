@@ -74,6 +74,11 @@ pub struct Round {
     pub candidates: Vec<CandidateResult>,
     /// The one accepted, if any.
     pub accepted: Option<String>,
+    /// Whiteness (Ljung-Box) p-value per axis of the held-out residual the round started
+    /// from. A candidate is accepted only when one axis is below the whiteness threshold:
+    /// with no structure left there is nothing to name. Absent in older files.
+    #[serde(default)]
+    pub whiteness_p: Option<[f64; 3]>,
 }
 
 /// Simulation against recording: the replayed simulation of the nominal scenario and of the

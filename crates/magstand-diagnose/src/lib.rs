@@ -13,9 +13,12 @@
 //!    steady state, one motor or all.
 //! 3. **Name.** Each catalog [`Effect`] is fitted (its nonlinear parameters by search, its
 //!    regressors by weighted least squares) and judged by a one-sided paired test of its
-//!    held-out improvement over blocks. The best significant one is accepted and the search
-//!    repeats, so several effects are found; what remains structured is reported as
-//!    "unexplained" with its location rather than forced onto a wrong name.
+//!    held-out improvement over blocks. The best significant one is accepted, the accepted
+//!    terms' nonlinear parameters are refitted together, and the search repeats, so several
+//!    effects are found. Candidates are accepted only while the residual still fails the
+//!    white-noise test of step 2 (a clean recording stays clean however many candidates are
+//!    tried); what remains structured is reported as "unexplained" with its location rather
+//!    than forced onto a wrong name.
 //! 4. **Model it.** The accepted effects switch the matching simulator modules on with the
 //!    fitted values ([`Diagnosis::augmented_scenario`]), and the replayed simulation of that
 //!    scenario is compared with the recording again. The calibrated augmented physics is also

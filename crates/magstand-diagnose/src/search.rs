@@ -493,6 +493,23 @@ pub fn diagnose(
     while terms.len() < cfg.max_terms {
         let (cur_fit, w) = &current;
         let before = cur_fit.residuals(y);
+        // Names are given only to structure the residual test sees (gatekeeping: the family
+        // of candidate tests is opened only when the global test rejects white noise), so a
+        // clean recording stays clean however many candidates there are, and the search
+        // stops once the accepted terms have left white noise. The first round is still
+        // tried, for the record.
+        let white = whiteness(&standardized(&before, w), &split);
+        let structured = white.iter().any(|&p| p < white_threshold);
+        if !structured && !rounds.is_empty() {
+            // Recorded, so the file shows why the search stopped.
+            rounds.push(Round {
+                threshold: cfg.significance,
+                candidates: Vec::new(),
+                accepted: None,
+                whiteness_p: Some(white),
+            });
+            break;
+        }
         let open: Vec<&dyn Effect> = effects
             .iter()
             .map(|e| e.as_ref())
@@ -513,6 +530,7 @@ pub fn diagnose(
         let best = tried
             .iter()
             .enumerate()
+            .filter(|_| structured)
             .filter(|(_, c)| c.result.p_value.is_some_and(|p| p < threshold))
             .filter(|(_, c)| c.result.improvement.is_some_and(|i| i > 0.0))
             .max_by(|a, b| {
@@ -527,6 +545,7 @@ pub fn diagnose(
             threshold,
             candidates: tried.iter().map(|c| c.result.clone()).collect(),
             accepted: accepted.clone(),
+            whiteness_p: Some(white),
         };
         let Some(i) = best else {
             rounds.push(round);

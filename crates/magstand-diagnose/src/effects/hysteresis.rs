@@ -25,10 +25,11 @@ impl Effect for Hysteresis {
         vec![Search {
             name: "play_a",
             unit: "A",
-            lo: 0.05 * max_a,
+            // A play of a few amperes on a stand drawing 70 A is still a loop a sensor sees.
+            lo: 0.01 * max_a,
             hi: 0.5 * max_a,
             log: true,
-            points: 13,
+            points: 17,
         }]
     }
     fn apply(&self, _ctx: &Context, s: &mut Scenario, theta: &[f64]) {
