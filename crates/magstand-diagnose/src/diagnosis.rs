@@ -75,8 +75,9 @@ pub struct Round {
     /// The one accepted, if any.
     pub accepted: Option<String>,
     /// Whiteness (Ljung-Box) p-value per axis of the held-out residual the round started
-    /// from. A candidate is accepted only when one axis is below the whiteness threshold:
-    /// with no structure left there is nothing to name. Absent in older files.
+    /// from. In the first round a candidate is accepted only when one axis is below the
+    /// whiteness threshold: a recording whose residual is white has nothing to name. Absent
+    /// in older files.
     #[serde(default)]
     pub whiteness_p: Option<[f64; 3]>,
 }

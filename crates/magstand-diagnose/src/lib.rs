@@ -15,7 +15,7 @@
 //!    regressors by weighted least squares) and judged by a one-sided paired test of its
 //!    held-out improvement over blocks. The best significant one is accepted, the accepted
 //!    terms' nonlinear parameters are refitted together, and the search repeats, so several
-//!    effects are found. Candidates are accepted only while the residual still fails the
+//!    effects are found. Candidates are accepted only when the baseline residual fails the
 //!    white-noise test of step 2 (a clean recording stays clean however many candidates are
 //!    tried); what remains structured is reported as "unexplained" with its location rather
 //!    than forced onto a wrong name.

@@ -2,8 +2,8 @@
 //! on, the diagnosis named a `time_offset` of one sample (p about 4e-5) although the residual
 //! passed the white-noise test and the held-out RMSE moved by 0.0001 µT: at 28 000 rows the
 //! candidate tests pick up the frame's small rocking on its mount after each step, which the
-//! replay leaves out. Names are now given only while the residual fails the white-noise test;
-//! the candidates are still tried once and recorded.
+//! replay leaves out. Names are now given only when the baseline residual fails the
+//! white-noise test; the candidates are still tried once and recorded.
 use magstand_diagnose::{DiagnoseConfig, diagnose};
 use magstand_sim::{Scenario, builtin, simulate};
 
