@@ -43,6 +43,7 @@ use magstand_sim::replay::replay;
 
 use crate::DiagnoseError;
 use crate::effects::{Context, Effect, catalog};
+use crate::fit::variance_at;
 use crate::search::build_with_lead;
 use crate::split::Split;
 use crate::versioned_json;
@@ -103,13 +104,12 @@ pub struct NoiseLaw {
 impl NoiseLaw {
     /// Noise sd per axis at a motor current of `load_a`, µT.
     pub fn sd_ut(&self, load_a: f64) -> Vec3 {
-        let q = load_a / self.full_load_a;
-        let c = &self.variance_ut2;
-        Vec3::from(std::array::from_fn::<f64, 3, _>(|a| {
-            (c[0][a] + c[1][a] * q + c[2][a] * q * q)
-                .max(self.floor_ut2[a])
-                .sqrt()
-        }))
+        let var = variance_at(
+            &self.variance_ut2,
+            &self.floor_ut2,
+            load_a / self.full_load_a,
+        );
+        Vec3::from(var.map(f64::sqrt))
     }
 
     fn is_valid(&self) -> bool {
@@ -169,10 +169,13 @@ impl AugmentedModel {
         origin: &str,
     ) -> Result<Option<Vec<Vec3>>, DiagnoseError> {
         let (_, load_a) = self.predict(rec, origin)?;
-        Ok(self
-            .noise
-            .as_ref()
-            .map(|n| load_a.iter().map(|&l| n.sd_ut(l)).collect()))
+        Ok(self.sd_at_loads(&load_a))
+    }
+
+    /// The noise law's sd at each motor current (A), µT.
+    fn sd_at_loads(&self, load_a: &[f64]) -> Option<Vec<Vec3>> {
+        let law = self.noise.as_ref()?;
+        Some(load_a.iter().map(|&l| law.sd_ut(l)).collect())
     }
 
     /// The disturbance (µT) and the motor current (A) at every row.
@@ -249,10 +252,7 @@ impl AugmentedModel {
         for (m, d) in out.mag_ut.iter_mut().zip(&dist) {
             *m -= d;
         }
-        let sd: Option<Vec<Vec3>> = self
-            .noise
-            .as_ref()
-            .map(|n| load_a.iter().map(|&l| n.sd_ut(l)).collect());
+        let sd = self.sd_at_loads(&load_a);
         // Stale columns of an earlier compensation go, whether or not they are rewritten.
         out.extra.retain(|(n, _)| {
             !["dist", "sd"]

@@ -137,6 +137,12 @@ pub(crate) fn fit(
     })
 }
 
+/// `max(c0 + c1 q + c2 q², floor)` per axis: the variance law of [`VarianceModel`], also
+/// evaluated from a model file's [`NoiseLaw`](crate::augmented_model::NoiseLaw).
+pub(crate) fn variance_at(coef: &[[f64; 3]; 3], floor: &[f64; 3], q: f64) -> [f64; 3] {
+    std::array::from_fn(|a| (coef[0][a] + coef[1][a] * q + coef[2][a] * q * q).max(floor[a]))
+}
+
 /// Noise variance growing with the load, per axis: `c0 + c1 q + c2 q^2`, q the motor current
 /// over its largest value (eq. 8: the variance grows with the control input).
 #[derive(Debug, Clone, PartialEq)]
@@ -181,9 +187,7 @@ impl VarianceModel {
 
     /// Variance at load `q`, per axis.
     pub fn at(&self, q: f64) -> [f64; 3] {
-        std::array::from_fn(|a| {
-            (self.coef[0][a] + self.coef[1][a] * q + self.coef[2][a] * q * q).max(self.floor[a])
-        })
+        variance_at(&self.coef, &self.floor, q)
     }
 
     /// Inverse variances of every row: the noise at the row's load plus the spread of the

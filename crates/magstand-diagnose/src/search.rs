@@ -499,8 +499,12 @@ pub fn diagnose(
         // is a mismatch, later rounds rely on the targeted candidate tests: a transient effect
         // (a delay at each step) can leave a residual the omnibus test calls white after a
         // first term, while its own test sees it plainly.
-        let white = whiteness(&standardized(&before, w), &split);
-        let structured = !rounds.is_empty() || white.iter().any(|&p| p < white_threshold);
+        let white = if rounds.is_empty() {
+            base_white
+        } else {
+            whiteness(&standardized(&before, w), &split)
+        };
+        let structured = !rounds.is_empty() || base_structured;
         let open: Vec<&dyn Effect> = effects
             .iter()
             .map(|e| e.as_ref())
