@@ -4,25 +4,14 @@
 //! disposition and ends quietly, as `cat` does, after writing its output files.
 #![cfg(unix)]
 mod common;
-use common::magstand;
+use common::{magstand, simulate_quick_tables};
 use std::process::{Command, Stdio};
 
 #[test]
 fn a_closed_stdout_ends_the_run_without_a_panic() {
     let dir = tempfile::tempdir().unwrap();
     let p = |s: &str| dir.path().join(s).to_str().unwrap().to_string();
-    let r = magstand(&[
-        "simulate",
-        "--scenario",
-        "builtin:czyba2015-tables",
-        "--out",
-        &p("sim"),
-        "--set",
-        "program.dwell_s=1.0",
-        "--set",
-        "stand.enabled=false",
-    ]);
-    assert!(r.ok, "{}", r.stderr);
+    simulate_quick_tables(&p("sim"));
 
     let mut child = Command::new(env!("CARGO_BIN_EXE_magstand"))
         .args([

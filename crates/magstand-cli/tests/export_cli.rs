@@ -1,24 +1,13 @@
 //! `magstand export` from the command line: a clean parameter file on stdout, the cost of the
 //! linear form on stderr, bad settings named, inputs never overwritten.
 mod common;
-use common::magstand;
+use common::{magstand, simulate_quick_tables};
 
 #[test]
 fn export_writes_parameter_files_and_refuses_bad_settings() {
     let dir = tempfile::tempdir().unwrap();
     let p = |s: &str| dir.path().join(s).to_str().unwrap().to_string();
-    let r = magstand(&[
-        "simulate",
-        "--scenario",
-        "builtin:czyba2015-tables",
-        "--out",
-        &p("sim"),
-        "--set",
-        "program.dwell_s=1.0",
-        "--set",
-        "stand.enabled=false",
-    ]);
-    assert!(r.ok, "{}", r.stderr);
+    simulate_quick_tables(&p("sim"));
     let model = p("m.json");
     let r = magstand(&[
         "fit",

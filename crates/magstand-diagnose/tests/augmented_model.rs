@@ -5,7 +5,9 @@
 //! physics alone, judged against the simulator's ground truth. It survives its file, and a
 //! recording it cannot serve is refused by name.
 use magstand_core::Vec3;
-use magstand_diagnose::{AugmentedModel, DiagnoseConfig, diagnose};
+mod common;
+use common::diagnose_default;
+use magstand_diagnose::AugmentedModel;
 use magstand_sim::{Scenario, ValidScenario, simulate};
 
 const STAND: &str = r#"
@@ -46,13 +48,7 @@ fn the_augmented_model_predicts_a_new_recording_of_the_same_stand() {
     let nominal = scenario(&[], 1);
     let real = |seed| scenario(&["motors.spinup_tau_s=0.3"], seed);
     let seen = simulate(&real(1), 1);
-    let d = diagnose(
-        &seen,
-        "seen.csv",
-        &nominal,
-        &DiagnoseConfig::default().check().unwrap(),
-    )
-    .unwrap();
+    let d = diagnose_default(&seen, "seen.csv", &nominal);
     assert_eq!(d.verdict, ["current_lag"]);
     let model = d.model.clone().unwrap();
     let baseline = d.baseline_model.clone().unwrap();

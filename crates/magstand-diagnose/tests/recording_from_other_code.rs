@@ -8,7 +8,9 @@
 //! each step no longer moved the omnibus test once the first term was in, while the
 //! time_offset test itself gave p = 2e-33.
 use magstand_core::{Recording, Vec3};
-use magstand_diagnose::{DEFAULT_NOMINAL, DiagnoseConfig, diagnose};
+mod common;
+use common::diagnose_default;
+use magstand_diagnose::DEFAULT_NOMINAL;
 use magstand_sim::Scenario;
 
 /// Standard normal draws from a fixed xorshift stream (Box-Muller): the test owns its noise.
@@ -66,13 +68,7 @@ fn a_delayed_magnetometer_stream_is_named_with_its_delay() {
         .unwrap()
         .check("default nominal", None)
         .unwrap();
-    let d = diagnose(
-        &recording(),
-        "other.csv",
-        &nominal,
-        &DiagnoseConfig::default().check().unwrap(),
-    )
-    .unwrap();
+    let d = diagnose_default(&recording(), "other.csv", &nominal);
     let delay = d
         .effects
         .iter()

@@ -2,37 +2,16 @@
 //! so a 3 A play on a stand drawing about 70 A came out at the edge of the range (3.5 A) with
 //! its gains 13 % low, and a `dead_zone` was named beside it for the remainder. The search now
 //! starts at 1 %.
-use magstand_diagnose::{DiagnoseConfig, diagnose};
-use magstand_sim::{Scenario, builtin, simulate};
+mod common;
+use common::{bench_supply_stair, diagnose_default};
+use magstand_sim::simulate;
 
 #[test]
 fn a_three_ampere_play_is_recovered_alone() {
-    let text = builtin::get("bench-supply-stair").unwrap();
-    let nominal = Scenario::from_toml_str(text, "nominal")
-        .unwrap()
-        .check("nominal", None)
-        .unwrap();
-    let overrides: Vec<String> = [
-        "program.direction=\"up_down\"",
-        "program.repeats=2",
-        "hysteresis.enabled=true",
-        "hysteresis.play_a=3.0",
-    ]
-    .map(String::from)
-    .to_vec();
-    let real = Scenario::from_toml_with_overrides(text, "real", &overrides)
-        .unwrap()
-        .check("real", None)
-        .unwrap();
+    let (nominal, real) = bench_supply_stair(&["hysteresis.enabled=true", "hysteresis.play_a=3.0"]);
     // A seed that had named the dead zone too.
     let rec = simulate(&real, 4);
-    let d = diagnose(
-        &rec,
-        "hysteresis.csv",
-        &nominal,
-        &DiagnoseConfig::default().check().unwrap(),
-    )
-    .unwrap();
+    let d = diagnose_default(&rec, "hysteresis.csv", &nominal);
     assert_eq!(d.verdict, ["hysteresis"], "{}", d.summary());
     let param = |name: &str| {
         d.effects[0]

@@ -4,33 +4,16 @@
 //! candidate tests pick up the frame's small rocking on its mount after each step, which the
 //! replay leaves out. Names are now given only when the baseline residual fails the
 //! white-noise test; the candidates are still tried once and recorded.
-use magstand_diagnose::{DiagnoseConfig, diagnose};
-use magstand_sim::{Scenario, builtin, simulate};
+mod common;
+use common::{bench_supply_stair, diagnose_default};
+use magstand_sim::simulate;
 
 #[test]
 fn a_clean_recording_at_100_hz_gets_an_empty_verdict() {
-    let overrides = [
-        "program.direction=\"up_down\"".to_string(),
-        "program.repeats=2".into(),
-    ];
-    let text = builtin::get("bench-supply-stair").unwrap();
-    let nominal = Scenario::from_toml_str(text, "nominal")
-        .unwrap()
-        .check("nominal", None)
-        .unwrap();
-    let real = Scenario::from_toml_with_overrides(text, "real", &overrides)
-        .unwrap()
-        .check("real", None)
-        .unwrap();
+    let (nominal, real) = bench_supply_stair(&[]);
     // The seed that gave the false name.
     let rec = simulate(&real, 11);
-    let d = diagnose(
-        &rec,
-        "clean.csv",
-        &nominal,
-        &DiagnoseConfig::default().check().unwrap(),
-    )
-    .unwrap();
+    let d = diagnose_default(&rec, "clean.csv", &nominal);
     assert!(d.verdict.is_empty(), "{}", d.summary());
     let first = &d.rounds[0];
     let white = first.whiteness_p.unwrap();

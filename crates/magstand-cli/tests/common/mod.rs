@@ -26,3 +26,21 @@ pub fn magstand(args: &[&str]) -> Run {
         stderr,
     }
 }
+
+/// Simulates a short run of the paper's tables (1 s dwell, no rigid body) into `out`, failing
+/// the test if it does not succeed: a quick recording for commands that need one.
+#[allow(dead_code)] // not every test file needs a recording
+pub fn simulate_quick_tables(out: &str) {
+    let r = magstand(&[
+        "simulate",
+        "--scenario",
+        "builtin:czyba2015-tables",
+        "--out",
+        out,
+        "--set",
+        "program.dwell_s=1.0",
+        "--set",
+        "stand.enabled=false",
+    ]);
+    assert!(r.ok, "{}", r.stderr);
+}
