@@ -44,7 +44,7 @@ use magstand_sim::replay::replay;
 use crate::DiagnoseError;
 use crate::effects::{Context, Effect, catalog};
 use crate::fit::variance_at;
-use crate::search::build_with_lead;
+use crate::pipeline::design::build_with_lead;
 use crate::split::Split;
 use crate::versioned_json;
 

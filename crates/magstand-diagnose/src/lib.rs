@@ -64,7 +64,7 @@ mod error;
 mod fit;
 mod locate;
 mod optimize;
-mod search;
+mod pipeline;
 pub mod split;
 mod stats;
 mod versioned_json;
@@ -76,7 +76,7 @@ pub use effects::{Context, Effect, EffectFit, Param, catalog};
 pub use error::DiagnoseError;
 pub use locate::Location;
 pub use optimize::Search;
-pub use search::diagnose;
+pub use pipeline::diagnose;
 
 /// The nominal test stand assumed when no scenario is given: the simulator's defaults (dead
 /// zone 0.37, 920 KV motors, default wiring) on a 12 V bench supply.

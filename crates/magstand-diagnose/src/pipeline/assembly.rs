@@ -1,0 +1,254 @@
+//! Stage 5, assembly: the final joint model, the accepted effects switched on in the augmented
+//! scenario with their fitted values, what structure remains ("unexplained"), the augmented
+//! simulation against the recording, and the diagnosis file and model files.
+use magstand_core::{Recording, Vec3};
+use magstand_sim::ValidScenario;
+use magstand_sim::replay::replay;
+
+use crate::augmented_model::{AugmentedModel, AugmentedTerm};
+use crate::diagnosis::{
+    Baseline, Diagnosis, EffectReport, FORMAT, Series, Settings, SimulationAgreement, Stage,
+    UNEXPLAINED, VERSION,
+};
+use crate::effects::{Context, EffectFit, Param};
+use crate::fit::{Design, Weights, fit};
+use crate::locate::{Rows, Signal, locate};
+use crate::{DiagnoseConfig, DiagnoseError};
+
+use super::design::{ModelFit, Term, fit_model};
+use super::forward::{BaselineFit, SearchOutcome};
+use super::gain::{holdout_rmse, standardized, whiteness};
+
+/// Most rows kept in the plotted residual series.
+const SERIES_POINTS: usize = 1500;
+
+/// The whiteness p-value below which an axis counts as structured.
+pub(crate) fn white_threshold(cfg: &DiagnoseConfig) -> f64 {
+    cfg.significance / 3.0
+}
+
+/// Assembles the diagnosis from the baseline and the search's outcome.
+pub(crate) fn assemble(
+    ctx: &Context,
+    nominal: &ValidScenario,
+    base: &BaselineFit,
+    outcome: SearchOutcome,
+    rows: &Rows,
+    cfg: &DiagnoseConfig,
+) -> Result<Diagnosis, DiagnoseError> {
+    let (rec, split, origin) = (ctx.rec, ctx.split, ctx.rec_origin.as_str());
+    let y = &rec.mag_ut;
+    let SearchOutcome {
+        terms,
+        rounds,
+        mut reports,
+        stages,
+        weights,
+    } = outcome;
+    // Final joint model; the accepted effects switched on with its values in the augmented
+    // scenario, which also gives their parameters.
+    let last = fit_model(ctx, &terms, Some(&weights))?;
+    let mut augmented = ctx.nominal.clone();
+    for (t, (report, cols)) in terms
+        .iter()
+        .zip(reports.iter_mut().zip(&last.built.term_columns))
+    {
+        report.params = t.effect.switch_on(
+            ctx,
+            &mut augmented,
+            &EffectFit {
+                theta: &t.theta,
+                theta_sd: &t.theta_sd,
+                coef: &last.fitted.coef[cols.clone()],
+                coef_sd: &last.fitted.coef_sd[cols.clone()],
+            },
+        );
+    }
+    let model = model_file(ctx, nominal, cfg, &terms, &last, ctx.command_lead);
+    let baseline_model = model_file(ctx, nominal, cfg, &[], &base.model, base.lead);
+    let mut verdict: Vec<String> = terms.iter().map(|t| t.effect.name().to_string()).collect();
+    if let Some(rest) = unexplained(ctx, &last, rows, cfg) {
+        reports.push(rest);
+        verdict.push(UNEXPLAINED.into());
+    }
+    let augmented = augmented.check(&format!("augmented {}", nominal.origin()), None)?;
+    let base_resid = base.model.fitted.residuals(y);
+    let base_rmse = holdout_rmse(&base_resid, &split.holdout);
+    Ok(Diagnosis {
+        format: FORMAT.into(),
+        version: VERSION,
+        recording: origin.into(),
+        scenario: nominal.origin().into(),
+        verdict,
+        baseline: baseline_report(ctx, base, &base_resid, rows, !terms.is_empty(), cfg),
+        effects: reports,
+        simulation: SimulationAgreement {
+            holdout_rmse_before_ut: base_rmse,
+            holdout_rmse_after_ut: simulation_rmse(ctx, &augmented, &last.weights)?,
+        },
+        rounds,
+        series: series(rec, &split.holdout, &stages),
+        settings: Settings {
+            significance: cfg.significance,
+            holdout_every: cfg.holdout_every,
+            block_s: split.block_s,
+            rows: [split.fit_rows(), rec.len() - split.fit_rows()],
+        },
+        augmented_scenario: augmented.to_toml(),
+        model: Some(model),
+        baseline_model: Some(baseline_model),
+    })
+}
+
+/// The model of `terms` as a model file that compensates recordings of the same stand.
+fn model_file(
+    ctx: &Context,
+    nominal: &ValidScenario,
+    cfg: &DiagnoseConfig,
+    terms: &[Term],
+    m: &ModelFit,
+    lead: f64,
+) -> AugmentedModel {
+    AugmentedModel {
+        format: crate::augmented_model::FORMAT.into(),
+        version: crate::augmented_model::VERSION,
+        recording: ctx.rec_origin.clone(),
+        nominal_scenario: nominal.to_toml(),
+        command_lead: lead,
+        block_s: ctx.split.block_s,
+        holdout_every: cfg.holdout_every,
+        effects: terms
+            .iter()
+            .map(|t| AugmentedTerm {
+                name: t.effect.name().into(),
+                theta: t.theta.clone(),
+            })
+            .collect(),
+        columns: m.built.design.names.clone(),
+        coefficients: m.fitted.coef.clone(),
+        noise: Some(m.noise.to_noise(m.built.full_load_a)),
+    }
+}
+
+/// The report of structure that remains in the final model's held-out residual, if any.
+fn unexplained(
+    ctx: &Context,
+    last: &ModelFit,
+    rows: &Rows,
+    cfg: &DiagnoseConfig,
+) -> Option<EffectReport> {
+    let resid = last.fitted.residuals(&ctx.rec.mag_ut);
+    let z = standardized(&resid, &last.weights);
+    let white = whiteness(&z, ctx.split);
+    if !white.iter().any(|&p| p < white_threshold(cfg)) {
+        return None;
+    }
+    let rmse = holdout_rmse(&resid, &ctx.split.holdout);
+    Some(EffectReport {
+        name: UNEXPLAINED.into(),
+        params: Vec::new(),
+        explanation: "Structure remains in the held-out residuals that no catalog term \
+                      explains; see where it is located."
+            .into(),
+        located: locate(
+            rows,
+            &z,
+            &ctx.split.holdout,
+            Signal::Residual,
+            cfg.significance,
+        ),
+        holdout_rmse_before_ut: rmse,
+        holdout_rmse_after_ut: rmse,
+        p_value: white.iter().cloned().fold(1.0, f64::min),
+    })
+}
+
+/// Held-out RMSE of the augmented scenario's replayed simulation, calibrated like the
+/// baseline, against the recording.
+fn simulation_rmse(
+    ctx: &Context,
+    augmented: &ValidScenario,
+    weights: &Weights,
+) -> Result<[f64; 3], DiagnoseError> {
+    let (rec, split) = (ctx.rec, ctx.split);
+    let tr = replay(
+        augmented.params(),
+        &rec.t_s,
+        &rec.thr,
+        None,
+        ctx.command_lead,
+    );
+    let design = Design::baseline(&tr);
+    let f = fit(
+        &design,
+        &rec.mag_ut,
+        Some(&tr.extra_ut),
+        weights,
+        &split.holdout,
+    )
+    .map_err(|_| DiagnoseError::Singular {
+        origin: ctx.rec_origin.clone(),
+        message: "the augmented simulation cannot be calibrated".into(),
+    })?;
+    Ok(holdout_rmse(&f.residuals(&rec.mag_ut), &split.holdout))
+}
+
+/// The baseline's part of the diagnosis file.
+fn baseline_report(
+    ctx: &Context,
+    base: &BaselineFit,
+    base_resid: &[Vec3],
+    rows: &Rows,
+    named: bool,
+    cfg: &DiagnoseConfig,
+) -> Baseline {
+    let split = ctx.split;
+    let fitted = &base.model.fitted;
+    Baseline {
+        holdout_rmse_ut: holdout_rmse(base_resid, &split.holdout),
+        structured: base.structured,
+        whiteness_p: base.white,
+        located: (base.structured || named).then(|| {
+            locate(
+                rows,
+                &standardized(base_resid, &base.model.weights),
+                &split.holdout,
+                Signal::Residual,
+                cfg.significance,
+            )
+        }),
+        calibration: base
+            .model
+            .built
+            .design
+            .names
+            .iter()
+            .zip(fitted.coef.iter().zip(&fitted.coef_sd))
+            .flat_map(|(name, (c, sd))| Param::axes(&format!("{name}_ut"), *c, *sd, "µT per unit"))
+            .chain([Param::new(
+                "command_lead",
+                base.lead,
+                None,
+                "fraction of the interval before a row",
+            )])
+            .collect(),
+    }
+}
+
+/// Held-out residuals of every stage at no more than [`SERIES_POINTS`] rows.
+fn series(rec: &Recording, holdout: &[bool], stages: &[(String, Vec<Vec3>)]) -> Series {
+    let held: Vec<usize> = (0..rec.len()).filter(|&r| holdout[r]).collect();
+    let stride = held.len().div_ceil(SERIES_POINTS).max(1);
+    let rows: Vec<usize> = held.into_iter().step_by(stride).collect();
+    Series {
+        t_s: rows.iter().map(|&r| rec.t_s[r]).collect(),
+        throttle: rows.iter().map(|&r| rec.overall_throttle(r)).collect(),
+        stages: stages
+            .iter()
+            .map(|(label, resid)| Stage {
+                label: label.clone(),
+                residual_ut: rows.iter().map(|&r| resid[r].into()).collect(),
+            })
+            .collect(),
+    }
+}

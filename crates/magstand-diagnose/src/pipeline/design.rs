@@ -1,0 +1,191 @@
+//! Stage 1, the regression design: the recording's commands replayed through the nominal
+//! physics with the terms' nonlinear parameters, the regressor columns of the baseline and of
+//! every term, and the weighted fit of such a design with a noise law from its own residuals.
+use magstand_core::Vec3;
+use magstand_sim::replay::replay;
+
+use crate::DiagnoseError;
+use crate::effects::{Context, Effect};
+use crate::fit::{Design, Fitted, VarianceModel, Weights, fit};
+
+/// An effect in the model with its nonlinear parameters.
+pub(crate) struct Term<'e> {
+    pub(crate) effect: &'e dyn Effect,
+    pub(crate) theta: Vec<f64>,
+    pub(crate) theta_sd: Vec<Option<f64>>,
+}
+
+/// The design of a model and which columns belong to which term.
+pub(crate) struct Built {
+    pub(crate) design: Design,
+    /// What the nominal physics fixes (per-motor wiring differences, switched-on extras).
+    pub(crate) fixed: Vec<Vec3>,
+    /// Motor current over its largest value: the load the noise variance grows with.
+    pub(crate) load: Vec<f64>,
+    /// The largest motor current, A (`load` 1).
+    pub(crate) full_load_a: f64,
+    /// The columns of each term, in the order of the terms.
+    pub(crate) term_columns: Vec<std::ops::Range<usize>>,
+}
+
+impl Built {
+    /// Motor current at every row, A.
+    pub(crate) fn load_a(&self) -> Vec<f64> {
+        self.load.iter().map(|q| q * self.full_load_a).collect()
+    }
+}
+
+/// The design of `terms` with the context's command lead.
+pub(crate) fn build(ctx: &Context, terms: &[(&dyn Effect, &[f64])]) -> Built {
+    build_with_lead(ctx, terms, ctx.command_lead)
+}
+
+/// The design of `terms` with command changes taking effect at `lead` of each interval.
+pub(crate) fn build_with_lead(ctx: &Context, terms: &[(&dyn Effect, &[f64])], lead: f64) -> Built {
+    let mut s = ctx.nominal.clone();
+    let mut recorded_v = false;
+    for (e, theta) in terms {
+        e.apply(ctx, &mut s, theta);
+        recorded_v |= e.uses_recorded_voltage(ctx);
+    }
+    let bat_v = if recorded_v {
+        ctx.rec.bat_v.as_deref()
+    } else {
+        None
+    };
+    let trace = replay(&s, &ctx.rec.t_s, &ctx.rec.thr, bat_v, lead);
+    let mut design = Design::baseline(&trace);
+    let mut term_columns = Vec::new();
+    for (e, theta) in terms {
+        let start = design.len();
+        for (name, col) in e.regressors(ctx, &trace, theta) {
+            design.push(name, col);
+        }
+        term_columns.push(start..design.len());
+    }
+    let avionics = s.supply.avionics_current_a();
+    let max_a = trace
+        .total_a
+        .iter()
+        .map(|a| a - avionics)
+        .fold(0.0, f64::max)
+        .max(1e-9);
+    Built {
+        design,
+        fixed: trace.extra_ut,
+        load: trace
+            .total_a
+            .iter()
+            .map(|a| (a - avionics) / max_a)
+            .collect(),
+        full_load_a: max_a,
+        term_columns,
+    }
+}
+
+/// The terms as (effect, parameters) pairs, as [`build`] takes them.
+pub(crate) fn as_refs<'a>(terms: &'a [Term<'a>]) -> Vec<(&'a dyn Effect, &'a [f64])> {
+    terms
+        .iter()
+        .map(|t| (t.effect, t.theta.as_slice()))
+        .collect()
+}
+
+/// Weighted chi-square of the identification rows for `terms` under `weights`, or None where
+/// the design cannot be fitted: what every nonlinear search minimizes.
+pub(crate) fn chi2_of(
+    ctx: &Context,
+    terms: &[(&dyn Effect, &[f64])],
+    lead: f64,
+    weights: &Weights,
+) -> Option<f64> {
+    fitted_with(ctx, terms, lead, weights).map(|f| f.chi2_fit)
+}
+
+/// The weighted fit of `terms` on the identification rows, or None where it cannot be fitted.
+pub(crate) fn fitted_with(
+    ctx: &Context,
+    terms: &[(&dyn Effect, &[f64])],
+    lead: f64,
+    weights: &Weights,
+) -> Option<Fitted> {
+    let b = build_with_lead(ctx, terms, lead);
+    fit(
+        &b.design,
+        &ctx.rec.mag_ut,
+        Some(&b.fixed),
+        weights,
+        &ctx.split.holdout,
+    )
+    .ok()
+}
+
+/// A model of some terms, fitted with weights from its own residuals.
+pub(crate) struct ModelFit {
+    pub(crate) built: Built,
+    pub(crate) fitted: Fitted,
+    pub(crate) weights: Weights,
+    /// The residual variance law on the held-out rows.
+    pub(crate) noise: VarianceModel,
+}
+
+/// Fits the model of `terms` with weights from its own residuals (one reweighting pass).
+pub(crate) fn fit_model(
+    ctx: &Context,
+    terms: &[Term],
+    weights: Option<&Weights>,
+) -> Result<ModelFit, DiagnoseError> {
+    let y = &ctx.rec.mag_ut;
+    let built = build(ctx, &as_refs(terms));
+    let singular = |e: magstand_ident::least_squares::SolveError| DiagnoseError::Singular {
+        origin: ctx.rec_origin.clone(),
+        message: match e {
+            magstand_ident::least_squares::SolveError::NoData => "no rows to fit".into(),
+            magstand_ident::least_squares::SolveError::Singular { column, .. } => format!(
+                "regressor `{}` is not determined: the recording needs motors off and at least \
+                 four distinct throttle levels",
+                built.design.names.get(column).map_or("?", String::as_str)
+            ),
+        },
+    };
+    let unit = Weights(vec![[1.0; 3]; y.len()]);
+    let first = fit(
+        &built.design,
+        y,
+        None,
+        weights.unwrap_or(&unit),
+        &ctx.split.holdout,
+    )
+    .map_err(singular)?;
+    // The load as this model's physics has it (a delay or a lag moves it too).
+    let q = &built.load;
+    let var = VarianceModel::fit(&first.residuals(y), q, &ctx.split.holdout);
+    let w = var.weights(q, &timing_spread(ctx, terms, &first.coef));
+    let fitted =
+        fit(&built.design, y, Some(&built.fixed), &w, &ctx.split.holdout).map_err(singular)?;
+    // What a model file promises for a new recording is the error on rows the fit did not
+    // see, so its noise law comes from the held-out rows (the weights above must not).
+    let skip_identification: Vec<bool> = ctx.split.holdout.iter().map(|h| !h).collect();
+    let noise = VarianceModel::fit(&fitted.residuals(y), q, &skip_identification);
+    Ok(ModelFit {
+        built,
+        fitted,
+        weights: w,
+        noise,
+    })
+}
+
+/// The spread of a model's prediction between the two extreme moments at which each logged
+/// command change could have happened (start or end of its interval): it sets the timing part
+/// of every row's variance.
+fn timing_spread(ctx: &Context, terms: &[Term], coef: &[[f64; 3]]) -> Vec<Vec3> {
+    let refs = as_refs(terms);
+    let (early, late) = (
+        build_with_lead(ctx, &refs, 0.0),
+        build_with_lead(ctx, &refs, 1.0),
+    );
+    let (a, b) = (early.design.predict(coef), late.design.predict(coef));
+    (0..a.len())
+        .map(|r| (b[r] + late.fixed[r]) - (a[r] + early.fixed[r]))
+        .collect()
+}

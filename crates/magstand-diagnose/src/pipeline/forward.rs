@@ -1,0 +1,234 @@
+//! Stage 3, the forward search: every open catalog effect is tried as a candidate (its
+//! nonlinear parameters searched, its regressors fitted, its held-out gain tested), the best
+//! significant one is accepted, the accepted terms are refined together, and the search
+//! repeats until no candidate passes or `max_terms` are in.
+use magstand_core::Vec3;
+use rayon::prelude::*;
+
+use crate::diagnosis::{CandidateResult, EffectReport, Round};
+use crate::effects::{Context, Effect};
+use crate::fit::{Fitted, Weights};
+use crate::locate::{Rows, Signal, locate};
+use crate::optimize::minimize;
+use crate::{DiagnoseConfig, DiagnoseError};
+
+use super::design::{ModelFit, Term, as_refs, chi2_of, fit_model, fitted_with};
+use super::gain::{block_improvements, gain_p_value, holdout_rmse, standardized, whiteness};
+use super::refine::refine;
+
+/// The calibrated baseline the search starts from.
+pub(crate) struct BaselineFit {
+    /// The baseline model.
+    pub(crate) model: ModelFit,
+    /// Its held-out whiteness p-value per axis.
+    pub(crate) white: [f64; 3],
+    /// Whether any axis fails the white-noise test: only then may a candidate be accepted.
+    pub(crate) structured: bool,
+    /// The command lead calibrated with it.
+    pub(crate) lead: f64,
+}
+
+/// What the forward search found.
+pub(crate) struct SearchOutcome<'e> {
+    /// The accepted terms, in the order they were accepted, with refined parameters.
+    pub(crate) terms: Vec<Term<'e>>,
+    /// Every round, with every candidate.
+    pub(crate) rounds: Vec<Round>,
+    /// One report per accepted term (parameters are filled in by the assembly).
+    pub(crate) reports: Vec<EffectReport>,
+    /// The residual after the baseline and after each accepted term.
+    pub(crate) stages: Vec<(String, Vec<Vec3>)>,
+    /// The weights of the last model fitted.
+    pub(crate) weights: Weights,
+}
+
+/// A candidate's test result and, when it could be fitted, its parameters and fit.
+struct Candidate {
+    result: CandidateResult,
+    fitted: Option<(Vec<f64>, Vec<Option<f64>>, Fitted)>,
+}
+
+impl Candidate {
+    /// A candidate that was not tried or could not be fitted, and why.
+    fn not_fitted(effect: &dyn Effect, note: &str) -> Candidate {
+        Candidate {
+            result: CandidateResult {
+                name: effect.name().into(),
+                holdout_rmse_ut: None,
+                improvement: None,
+                p_value: None,
+                note: Some(note.into()),
+            },
+            fitted: None,
+        }
+    }
+}
+
+/// Fits `effect` beside the accepted `terms` and tests its held-out gain over `before`.
+fn try_candidate(
+    ctx: &Context,
+    terms: &[Term],
+    effect: &dyn Effect,
+    weights: &Weights,
+    before: &[Vec3],
+) -> Candidate {
+    let base = as_refs(terms);
+    fn with_theta<'a>(
+        base: &[(&'a dyn Effect, &'a [f64])],
+        effect: &'a dyn Effect,
+        theta: &'a [f64],
+    ) -> Vec<(&'a dyn Effect, &'a [f64])> {
+        let mut all = base.to_vec();
+        all.push((effect, theta));
+        all
+    }
+    let Some(opt) = minimize(&effect.search(ctx), |theta| {
+        chi2_of(
+            ctx,
+            &with_theta(&base, effect, theta),
+            ctx.command_lead,
+            weights,
+        )
+    }) else {
+        return Candidate::not_fitted(
+            effect,
+            "cannot be fitted on this recording (its regressors are degenerate here)",
+        );
+    };
+    let Some(fitted) = fitted_with(
+        ctx,
+        &with_theta(&base, effect, &opt.theta),
+        ctx.command_lead,
+        weights,
+    ) else {
+        return Candidate::not_fitted(effect, "cannot be fitted at its best parameters");
+    };
+    let after = fitted.residuals(&ctx.rec.mag_ut);
+    let blocks = block_improvements(before, &after, weights, ctx.split);
+    let improvement = blocks.iter().sum::<f64>() / blocks.len().max(1) as f64;
+    Candidate {
+        result: CandidateResult {
+            name: effect.name().into(),
+            holdout_rmse_ut: Some(holdout_rmse(&after, &ctx.split.holdout)),
+            improvement: Some(improvement),
+            p_value: gain_p_value(&blocks, before, &after, weights, ctx.split),
+            note: None,
+        },
+        fitted: Some((opt.theta, opt.sd, fitted)),
+    }
+}
+
+/// Runs the forward search over `effects` from the baseline `base`.
+pub(crate) fn forward_search<'e>(
+    ctx: &mut Context,
+    effects: &'e [Box<dyn Effect>],
+    base: &BaselineFit,
+    rows: &Rows,
+    cfg: &DiagnoseConfig,
+) -> Result<SearchOutcome<'e>, DiagnoseError> {
+    let rec = ctx.rec;
+    let y = &rec.mag_ut;
+    let all_rows = vec![true; rec.len()];
+    let mut terms: Vec<Term> = Vec::new();
+    let mut rounds = Vec::new();
+    let mut reports: Vec<EffectReport> = Vec::new();
+    let mut stages = vec![("baseline".to_string(), base.model.fitted.residuals(y))];
+    let mut current = (base.model.fitted.clone(), base.model.weights.clone());
+    while terms.len() < cfg.max_terms {
+        let (cur_fit, w) = &current;
+        let before = cur_fit.residuals(y);
+        // Gatekeeping: the family of candidate tests is opened only when the global test
+        // rejects white noise for the baseline, so a clean recording stays clean however many
+        // candidates there are (the first round is still tried, for the record). Once there
+        // is a mismatch, later rounds rely on the targeted candidate tests: a transient effect
+        // (a delay at each step) can leave a residual the omnibus test calls white after a
+        // first term, while its own test sees it plainly.
+        let white = if rounds.is_empty() {
+            base.white
+        } else {
+            whiteness(&standardized(&before, w), ctx.split)
+        };
+        let structured = !rounds.is_empty() || base.structured;
+        let open: Vec<&dyn Effect> = effects
+            .iter()
+            .map(|e| e.as_ref())
+            .filter(|e| !terms.iter().any(|t| t.effect.name() == e.name()))
+            .collect();
+        let shared: &Context = ctx;
+        let tried: Vec<Candidate> = open
+            .par_iter()
+            .map(|e| {
+                if e.applies(shared) {
+                    try_candidate(shared, &terms, *e, w, &before)
+                } else {
+                    Candidate::not_fitted(*e, "does not apply to this recording")
+                }
+            })
+            .collect();
+        let k = tried.iter().filter(|c| c.fitted.is_some()).count().max(1);
+        let threshold = cfg.significance / k as f64;
+        let best = tried
+            .iter()
+            .enumerate()
+            .filter(|_| structured)
+            .filter(|(_, c)| c.result.p_value.is_some_and(|p| p < threshold))
+            .filter(|(_, c)| c.result.improvement.is_some_and(|i| i > 0.0))
+            .max_by(|a, b| {
+                a.1.result
+                    .improvement
+                    .partial_cmp(&b.1.result.improvement)
+                    .unwrap_or(std::cmp::Ordering::Equal)
+            })
+            .map(|(i, _)| i);
+        let round = Round {
+            threshold,
+            candidates: tried.iter().map(|c| c.result.clone()).collect(),
+            accepted: best.map(|i| open[i].name().to_string()),
+            whiteness_p: Some(white),
+        };
+        let Some(i) = best else {
+            rounds.push(round);
+            break;
+        };
+        let (theta, theta_sd, fitted) = tried[i].fitted.clone().expect("accepted means fitted");
+        let after = fitted.residuals(y);
+        // Where the new term changes the prediction, in noise units.
+        let change: Vec<Vec3> = standardized(
+            &fitted
+                .pred
+                .iter()
+                .zip(&cur_fit.pred)
+                .map(|(a, b)| a - b)
+                .collect::<Vec<_>>(),
+            w,
+        );
+        reports.push(EffectReport {
+            name: open[i].name().into(),
+            params: Vec::new(),
+            explanation: open[i].explanation().into(),
+            located: locate(rows, &change, &all_rows, Signal::Change, cfg.significance),
+            holdout_rmse_before_ut: holdout_rmse(&before, &ctx.split.holdout),
+            holdout_rmse_after_ut: holdout_rmse(&after, &ctx.split.holdout),
+            p_value: tried[i].result.p_value.unwrap_or(1.0),
+        });
+        stages.push((format!("+ {}", open[i].name()), after));
+        terms.push(Term {
+            effect: open[i],
+            theta,
+            theta_sd,
+        });
+        // The new term was fitted with the others' parameters held; they and the moment of
+        // the interval at which commands act are refitted with it.
+        refine(ctx, &mut terms, w);
+        let m = fit_model(ctx, &terms, Some(w))?;
+        current = (m.fitted, m.weights);
+        rounds.push(round);
+    }
+    Ok(SearchOutcome {
+        terms,
+        rounds,
+        reports,
+        stages,
+        weights: current.1,
+    })
+}

@@ -1,0 +1,130 @@
+//! The diagnosis in five stages, each a module of its own:
+//!
+//! 1. [`design`]: the recording's commands replayed through the nominal physics (with any
+//!    terms' nonlinear parameters), the regressor columns of the baseline and of each term, and
+//!    the weighted fit of such a design with a noise law from its own residuals.
+//! 2. [`gain`]: the statistics of a held-out gain (held-out RMSE, per-block improvements, the
+//!    combined one-sided test of a candidate's gain) and the white-noise test.
+//! 3. [`forward`]: the forward search over the catalog, one accepted term per round.
+//! 4. [`refine`]: after each acceptance, the accepted terms' nonlinear parameters and the
+//!    command timing refitted together.
+//! 5. [`assembly`]: the final joint model, the augmented scenario and its simulation, what
+//!    remains unexplained, and the diagnosis and model files.
+//!
+//! [`diagnose`] checks the recording against the nominal stand, calibrates the baseline and
+//! runs the stages in that order.
+use magstand_core::Recording;
+use magstand_sim::replay::{Trace, replay};
+use magstand_sim::{Scenario, ValidScenario};
+
+use crate::diagnosis::Diagnosis;
+use crate::effects::{Context, catalog};
+use crate::fit::Weights;
+use crate::locate::Rows;
+use crate::split::Split;
+use crate::{DiagnoseConfig, DiagnoseError, ValidConfig};
+
+pub(crate) mod assembly;
+pub(crate) mod design;
+pub(crate) mod forward;
+pub(crate) mod gain;
+pub(crate) mod refine;
+
+use forward::BaselineFit;
+
+/// Fewest held-out blocks for the paired tests to mean anything.
+const MIN_HOLDOUT_BLOCKS: usize = 5;
+
+/// Diagnoses `rec` (named `origin` in messages) against the nominal scenario.
+pub fn diagnose(
+    rec: &Recording,
+    origin: &str,
+    nominal: &ValidScenario,
+    config: &ValidConfig,
+) -> Result<Diagnosis, DiagnoseError> {
+    let cfg = config.params();
+    let (scenario, split, nominal_trace) = prepare(rec, origin, nominal, cfg)?;
+    let mut ctx = Context {
+        rec,
+        nominal: &scenario,
+        split: &split,
+        nominal_trace: &nominal_trace,
+        rec_origin: origin.to_string(),
+        command_lead: 0.5,
+    };
+    let base = calibrate_baseline(&mut ctx, cfg)?;
+    let rows = Rows::new(rec, &split.block);
+    let effects = catalog();
+    let outcome = forward::forward_search(&mut ctx, &effects, &base, &rows, cfg)?;
+    assembly::assemble(&ctx, nominal, &base, outcome, &rows, cfg)
+}
+
+/// Checks that the recording fits the nominal stand and is long enough to hold out, and
+/// returns the nominal physics for it, its split and its nominal replay.
+fn prepare(
+    rec: &Recording,
+    origin: &str,
+    nominal: &ValidScenario,
+    cfg: &DiagnoseConfig,
+) -> Result<(Scenario, Split, Trace), DiagnoseError> {
+    let bad = |message: String| DiagnoseError::Recording {
+        origin: origin.into(),
+        message,
+    };
+    let motors = nominal.params().motors.count;
+    let n_cols = rec.motor_count();
+    if n_cols != motors && n_cols != 1 {
+        return Err(bad(format!(
+            "{n_cols} motor command columns, but the scenario {} has motors.count = {motors}: \
+             expected {motors} thr_N columns (or one thr column for all motors)",
+            nominal.origin()
+        )));
+    }
+    let split = Split::new(&rec.t_s, cfg.block_s, cfg.holdout_every);
+    if split.holdout_blocks() < MIN_HOLDOUT_BLOCKS || split.fit_rows() < 50 {
+        return Err(bad(format!(
+            "{} rows in {} held-out blocks of {:.2} s: expected at least 50 rows to fit and {} \
+             held-out blocks (a longer recording, or a shorter block_s)",
+            rec.len(),
+            split.holdout_blocks(),
+            split.block_s,
+            MIN_HOLDOUT_BLOCKS
+        )));
+    }
+    let mut scenario = nominal.params().clone();
+    // The program is the recording's; the nominal stand's own logging delay is physics.
+    scenario.study = Default::default();
+    let nominal_trace = replay(&scenario, &rec.t_s, &rec.thr, None, 0.5);
+    let avionics = scenario.supply.avionics_current_a();
+    let max_motor_a = nominal_trace
+        .total_a
+        .iter()
+        .map(|a| a - avionics)
+        .fold(0.0, f64::max);
+    if max_motor_a <= 0.0 {
+        return Err(bad(format!(
+            "the motors never run under the nominal physics (dead zone {}): expected commands \
+             above the dead zone",
+            scenario.motors.dead_zone
+        )));
+    }
+    Ok((scenario, split, nominal_trace))
+}
+
+/// Calibrates the command timing and the baseline, and tests its held-out residual for white
+/// noise.
+fn calibrate_baseline(
+    ctx: &mut Context,
+    cfg: &DiagnoseConfig,
+) -> Result<BaselineFit, DiagnoseError> {
+    ctx.command_lead = refine::calibrate_timing(ctx, &[], &Weights(vec![[1.0; 3]; ctx.rec.len()]));
+    let model = design::fit_model(ctx, &[], None)?;
+    let z = gain::standardized(&model.fitted.residuals(&ctx.rec.mag_ut), &model.weights);
+    let white = gain::whiteness(&z, ctx.split);
+    Ok(BaselineFit {
+        structured: white.iter().any(|&p| p < assembly::white_threshold(cfg)),
+        white,
+        lead: ctx.command_lead,
+        model,
+    })
+}
