@@ -6,13 +6,18 @@
 //! * `RCOU` channels (`C1..` or, in older logs, `Ch1..`), motors located by
 //!   `SERVOn_FUNCTION` = 33.. when set, mapped to 0..1 with `MOT_PWM_MIN`/`MOT_PWM_MAX`, or
 //!   `RC3_MIN`/`RC3_MAX` when those are 0 (ArduPilot's own fallback).
-//! * `BAT` (V, A) or, in Copter 3.4 and older, `CURR` (centivolts, centiamperes).
+//! * `BAT` or, in Copter 3.4 and older, `CURR`: volts and amperes.
+//!
+//! Every field is scaled as the log itself declares it (`FMT` type, `FMTU` unit and
+//! multiplier; see [`crate::field_units`]): Copter 3.3 logs `CURR` in integer hundredths,
+//! Copter 3.4 in float volts and amperes, and a fixed factor would be wrong for one of them.
 //! * `ATT` roll, pitch, yaw in degrees; `EV` 10/11 armed/disarmed, 28/18 took off/landed;
 //!   `GPS` position and GPS week time for the Earth-field model.
 use magstand_core::{Quat, Vec3};
 
 use crate::LogsError;
-use crate::contents::LogContents;
+use crate::contents::{LogContents, Series};
+use crate::field_units::{self, Quantity};
 use crate::import::ImportOptions;
 use crate::streams::{Position, Stream, VehicleStreams, decimal_year, normalize_output};
 
@@ -23,24 +28,33 @@ pub fn streams(log: &LogContents, opts: &ImportOptions) -> Result<VehicleStreams
     let mut out = VehicleStreams::default();
     magnetometer(log, opts, &mut out)?;
     motors(log, opts, &mut out)?;
-    let (bat, scale) = match log.series("BAT", 0) {
-        Some(b) => (Some(b), 1.0),
-        None => (log.series("CURR", 0), 0.01),
+    let (bat, bat_name) = match log.series("BAT", 0) {
+        Some(b) => (Some(b), "BAT"),
+        None => (log.series("CURR", 0), "CURR"),
     };
     if let Some(b) = bat {
-        let scaled = |x: f64| x.is_finite().then_some(x * scale);
-        out.bat_v = b
-            .stream("Volt", scaled)
-            .filter(|s| s.values.iter().any(|v| *v > 0.5));
-        out.bat_a = b.stream("Curr", scaled);
+        out.bat_v = si_stream(log, b, bat_name, "Volt", Quantity::Voltage)?;
+        if out
+            .bat_v
+            .as_ref()
+            .is_some_and(|s| s.values.iter().all(|v| *v <= 0.5))
+        {
+            out.notes.push(format!(
+                "{bat_name}.Volt is 0 throughout (no voltage sensor): bat_v is left out"
+            ));
+            out.bat_v = None;
+        }
+        out.bat_a = si_stream(log, b, bat_name, "Curr", Quantity::Current)?;
     }
     // ESC telemetry (BLHeli, DroneCAN): one ESC message per instance, current in A, in motor
     // order.
     let motor_count = out.motors.values.first().map_or(0, |m| m.len());
+    let esc_scale = field_units::scale(log, "ESC", "Curr", Quantity::Current)?;
     out.esc_a = (0..motor_count.min(u8::MAX as usize) as u8)
         .map_while(|i| {
+            let k = esc_scale?;
             log.series("ESC", i)?
-                .stream("Curr", |a| (a.is_finite() && a >= 0.0).then_some(a))
+                .stream("Curr", |a| (a.is_finite() && a >= 0.0).then_some(a * k))
                 .filter(|s| !s.is_empty())
         })
         .collect();
@@ -54,9 +68,15 @@ pub fn streams(log: &LogContents, opts: &ImportOptions) -> Result<VehicleStreams
     if let Some(a) = log.series("ATT", 0)
         && let (Some(r), Some(p), Some(y)) = (a.field("Roll"), a.field("Pitch"), a.field("Yaw"))
     {
+        let deg =
+            |f: &str| field_units::scale(log, "ATT", f, Quantity::Angle).map(|k| k.unwrap_or(1.0));
+        let (kr, kp, ky) = (deg("Roll")?, deg("Pitch")?, deg("Yaw")?);
         out.attitude = Some(Stream::from_pairs((0..a.len()).map(|k| {
-            let q =
-                Quat::from_euler_angles(r[k].to_radians(), p[k].to_radians(), y[k].to_radians());
+            let q = Quat::from_euler_angles(
+                (r[k] * kr).to_radians(),
+                (p[k] * kp).to_radians(),
+                (y[k] * ky).to_radians(),
+            );
             (
                 a.t_s[k],
                 q.coords.iter().all(|c| c.is_finite()).then_some(q),
@@ -76,6 +96,21 @@ pub fn streams(log: &LogContents, opts: &ImportOptions) -> Result<VehicleStreams
     out.landed = events(18, 28);
     out.position = position(log);
     Ok(out)
+}
+
+/// One field of `series` as a stream in magstand's unit for `quantity`, scaled as the log
+/// declares it ([`field_units::scale`]); `None` when the message has no such field.
+fn si_stream(
+    log: &LogContents,
+    series: &Series,
+    message: &str,
+    field: &str,
+    quantity: Quantity,
+) -> Result<Option<Stream<f64>>, LogsError> {
+    let Some(k) = field_units::scale(log, message, field, quantity)? else {
+        return Ok(None);
+    };
+    Ok(series.stream(field, |x| (x * k).is_finite().then_some(x * k)))
 }
 
 fn magnetometer(
@@ -139,8 +174,15 @@ fn magnetometer(
             })
         })
         .collect::<Result<_, _>>()?;
+    let k: Vec<f64> = ["MagX", "MagY", "MagZ"]
+        .iter()
+        .map(|a| {
+            field_units::scale(log, "MAG", a, Quantity::MagneticField)
+                .map(|k| k.unwrap_or(UT_PER_MILLIGAUSS))
+        })
+        .collect::<Result<_, _>>()?;
     out.mag_ut = Stream::from_pairs((0..s.len()).map(|r| {
-        let v = Vec3::new(axes[0][r], axes[1][r], axes[2][r]) * UT_PER_MILLIGAUSS;
+        let v = Vec3::new(axes[0][r] * k[0], axes[1][r] * k[1], axes[2][r] * k[2]);
         (s.t_s[r], v.iter().all(|x| x.is_finite()).then_some(v))
     }));
     Ok(())
@@ -234,12 +276,24 @@ fn motors(
     out.notes.push(format!(
         "motors: RCOU channels {channels:?}, PWM {lo}..{hi} from {source}"
     ));
+    let us: Vec<f64> = channels
+        .iter()
+        .map(|c| {
+            let name = if s.field(&format!("C{c}")).is_some() {
+                format!("C{c}")
+            } else {
+                format!("Ch{c}")
+            };
+            field_units::scale(log, "RCOU", &name, Quantity::Pulse).map(|k| k.unwrap_or(1.0))
+        })
+        .collect::<Result<_, _>>()?;
     out.motors = Stream::from_pairs((0..s.len()).map(|r| {
         (
             s.t_s[r],
             Some(
                 cols.iter()
-                    .map(|c| normalize_output(c[r], lo, hi))
+                    .zip(&us)
+                    .map(|(c, k)| normalize_output(c[r] * k, lo, hi))
                     .collect(),
             ),
         )

@@ -3,6 +3,7 @@
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 
+use crate::field_units::FieldUnits;
 use crate::streams::Stream;
 
 /// One topic instance: a time stamp per message and a column per numeric field.
@@ -100,9 +101,13 @@ pub struct LogContents {
     pub events: Vec<(f64, i64)>,
     /// `None` when the file ended cleanly; otherwise how it broke off. What came before is kept.
     pub damage: Option<String>,
+    /// DataFlash field layouts and declared units by message name (empty for ULog, whose
+    /// fields are typed floats in fixed units).
+    pub field_units: FieldUnits,
 }
 
 impl LogContents {
+    /// An empty log of `format` read from `path`.
     pub(crate) fn new(path: PathBuf, format: LogFormat) -> Self {
         Self {
             path,
@@ -111,6 +116,7 @@ impl LogContents {
             topics: BTreeMap::new(),
             events: Vec::new(),
             damage: None,
+            field_units: FieldUnits::new(),
         }
     }
 

@@ -4,13 +4,16 @@
 //! a format (FMT) message declares without checking it, which panics on a corrupt FMT that
 //! declares fewer than 3 bytes. Such a FMT cannot be valid, so its header is blanked before
 //! parsing (see `sanitize`), and the crate skips it like any other garbage.
+use std::collections::{BTreeMap, HashMap};
 use std::io::Cursor;
 use std::path::Path;
+use std::sync::Arc;
 
-use ardupilot_binlog::Reader;
+use ardupilot_binlog::{MessageFormat, Reader};
 
 use crate::LogsError;
 use crate::contents::{LogContents, LogFormat};
+use crate::field_units::{self, FieldUnit, FieldUnits};
 
 /// Message types the ArduPilot import reads.
 pub const MESSAGES: [&str; 9] = [
@@ -43,6 +46,65 @@ fn base_and_instance(name: &str) -> (&str, u8) {
     }
 }
 
+/// Field layouts of the messages magstand reads, with the units and multipliers their `FMTU`
+/// declares (resolved through `UNIT` and `MULT`, or ArduPilot's standard ids when those
+/// records are missing).
+fn field_units(
+    formats: &HashMap<u8, Arc<MessageFormat>>,
+    fmtu: &BTreeMap<u8, (String, String)>,
+    unit_labels: &BTreeMap<char, String>,
+    multipliers: &BTreeMap<char, f64>,
+) -> FieldUnits {
+    let mut out = FieldUnits::new();
+    // Sorted by type id so that, of two formats with one base name (MAG, MAG2), the same one
+    // wins on every run.
+    let mut sorted: Vec<_> = formats.iter().collect();
+    sorted.sort_by_key(|(ty, _)| **ty);
+    for (ty, f) in sorted {
+        let (base, _) = base_and_instance(&f.name);
+        if !MESSAGES.contains(&base) || out.contains_key(base) {
+            continue;
+        }
+        let ids = fmtu.get(ty);
+        let fields = f
+            .labels
+            .iter()
+            .zip(f.format.chars())
+            .enumerate()
+            .map(|(i, (label, type_char))| {
+                let unit_id = ids.and_then(|(u, _)| u.chars().nth(i));
+                let mult_id = ids.and_then(|(_, m)| m.chars().nth(i));
+                let unit = unit_id.and_then(|c| {
+                    unit_labels
+                        .get(&c)
+                        .cloned()
+                        .or_else(|| field_units::standard_unit(c).map(str::to_string))
+                });
+                // '-' (no multiplier) is logged as 0 and '?' (unknown) as 1: neither scales.
+                let mult = mult_id
+                    .filter(|c| !matches!(c, '-' | '?'))
+                    .and_then(|c| {
+                        multipliers
+                            .get(&c)
+                            .copied()
+                            .or_else(|| field_units::standard_multiplier(c))
+                    })
+                    .filter(|m| m.is_finite() && *m != 0.0);
+                (
+                    label.clone(),
+                    FieldUnit {
+                        type_char,
+                        unit,
+                        mult,
+                    },
+                )
+            })
+            .collect();
+        out.insert(base.to_string(), fields);
+    }
+    out
+}
+
 /// Reads DataFlash bytes; `path` names them in messages.
 ///
 /// Bytes the parser had to skip (corruption, a truncated last message) are counted and
@@ -62,6 +124,9 @@ pub fn read_bytes(bytes: &[u8], path: &Path) -> Result<LogContents, LogsError> {
     let mut now_s = f64::NAN;
     let mut parsed_bytes = 0usize;
     let mut entries = 0usize;
+    let mut fmtu: BTreeMap<u8, (String, String)> = BTreeMap::new();
+    let mut unit_labels: BTreeMap<char, String> = BTreeMap::new();
+    let mut multipliers: BTreeMap<char, f64> = BTreeMap::new();
     while let Some(item) = reader.next() {
         let Ok(entry) = item else { continue };
         entries += 1;
@@ -75,6 +140,31 @@ pub fn read_bytes(bytes: &[u8], path: &Path) -> Result<LogContents, LogsError> {
         };
         if let Some(t) = t.filter(|t| t.is_finite()) {
             now_s = t;
+        }
+        match entry.name.as_str() {
+            "FMTU" => {
+                if let (Some(ty), Some(u), Some(m)) = (
+                    entry.get_f64("FmtType"),
+                    entry.get_str("UnitIds"),
+                    entry.get_str("MultIds"),
+                ) {
+                    fmtu.insert(ty as u8, (u.to_string(), m.to_string()));
+                }
+                continue;
+            }
+            "UNIT" => {
+                if let (Some(id), Some(label)) = (entry.get_f64("Id"), entry.get_str("Label")) {
+                    unit_labels.insert(id as u8 as char, label.to_string());
+                }
+                continue;
+            }
+            "MULT" => {
+                if let (Some(id), Some(m)) = (entry.get_f64("Id"), entry.get_f64("Mult")) {
+                    multipliers.insert(id as u8 as char, m);
+                }
+                continue;
+            }
+            _ => {}
         }
         let (base, digit_instance) = base_and_instance(&entry.name);
         if !MESSAGES.contains(&base) {
@@ -113,6 +203,7 @@ pub fn read_bytes(bytes: &[u8], path: &Path) -> Result<LogContents, LogsError> {
                     .filter_map(|(k, v)| Some((k.to_string(), v.as_f64()?))),
             );
     }
+    out.field_units = field_units(reader.formats(), &fmtu, &unit_labels, &multipliers);
     if entries == 0 {
         return Err(LogsError::Corrupt {
             path: path.to_path_buf(),

@@ -37,6 +37,7 @@ pub mod dataflash;
 pub mod earth;
 mod error;
 pub mod export;
+pub mod field_units;
 pub mod import;
 pub mod log_writer;
 pub mod px4;

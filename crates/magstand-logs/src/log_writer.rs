@@ -156,58 +156,226 @@ pub fn ulog_bytes(rec: &Recording, opts: &LogWriteOptions) -> Vec<u8> {
 /// DataFlash message header.
 const HEAD: [u8; 2] = [0xA3, 0x95];
 
-/// A FMT message defining `kind`.
-fn fmt_msg(out: &mut Vec<u8>, kind: u8, name: &str, format: &str, labels: &str) {
-    let size: usize = 3 + format
-        .chars()
-        .map(|c| match c {
-            'B' | 'b' => 1,
-            'H' | 'h' => 2,
-            'f' | 'I' | 'i' => 4,
-            'Q' | 'q' | 'd' => 8,
-            'N' => 16,
-            'Z' => 64,
-            'n' => 4,
-            _ => unreachable!("format characters are fixed in this file"),
-        })
-        .sum::<usize>();
-    let fixed = |s: &str, len: usize| {
-        let mut b = s.as_bytes().to_vec();
-        b.resize(len, 0);
+/// Type ids the builder gives the messages it defines itself.
+const FMT_KIND: u8 = 0x80;
+const PARM_KIND: u8 = 0xF0;
+const FMTU_KIND: u8 = 0xF1;
+const UNIT_KIND: u8 = 0xF2;
+const MULT_KIND: u8 = 0xF3;
+
+/// DataFlash bytes built message by message: formats (`FMT`, and the `FMTU`, `UNIT` and
+/// `MULT` records that declare units), parameters and data rows encoded by their format.
+///
+/// It writes what ArduPilot writes, in any layout a firmware version used, so that the import
+/// can be tested on layouts no real log at hand has.
+///
+/// ```
+/// use magstand_logs::log_writer::DataflashBuilder;
+/// let mut b = DataflashBuilder::new();
+/// b.format(0x84, "CURR", "Qff", "TimeUS,Volt,Curr")
+///     .row(0x84, &[1e6, 16.2, 12.5]);
+/// let log = magstand_logs::dataflash::read_bytes(&b.into_bytes(), "curr.bin".as_ref())?;
+/// assert_eq!(log.series("CURR", 0).unwrap().field("Curr"), Some(&[12.5][..]));
+/// # Ok::<(), magstand_logs::LogsError>(())
+/// ```
+#[derive(Debug, Clone)]
+pub struct DataflashBuilder {
+    bytes: Vec<u8>,
+    formats: std::collections::BTreeMap<u8, String>,
+}
+
+impl Default for DataflashBuilder {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl DataflashBuilder {
+    /// A log holding only the format of `FMT` itself.
+    pub fn new() -> Self {
+        let mut b = Self {
+            bytes: Vec::new(),
+            formats: Default::default(),
+        };
+        b.format(FMT_KIND, "FMT", "BBnNZ", "Type,Length,Name,Format,Labels");
         b
-    };
-    out.extend_from_slice(&HEAD);
-    out.push(0x80);
-    out.push(kind);
-    out.push(size as u8);
-    out.extend(fixed(name, 4));
-    out.extend(fixed(format, 16));
-    out.extend(fixed(labels, 64));
+    }
+
+    /// Defines message type `kind` (a `FMT` record). Format characters: `bBhHiIqQfd` numbers,
+    /// `cCeE` hundredths, `nNZ` text.
+    ///
+    /// # Panics
+    /// On a format character outside that list: formats are written by the caller's code.
+    pub fn format(&mut self, kind: u8, name: &str, format: &str, labels: &str) -> &mut Self {
+        let size = 3 + format.chars().map(field_size).sum::<usize>();
+        self.formats.insert(kind, format.to_string());
+        self.bytes.extend_from_slice(&HEAD);
+        self.bytes.push(FMT_KIND);
+        self.bytes.push(kind);
+        self.bytes.push(size as u8);
+        self.bytes.extend(fixed(name, 4));
+        self.bytes.extend(fixed(format, 16));
+        self.bytes.extend(fixed(labels, 64));
+        self
+    }
+
+    /// One message of type `kind`, its numeric fields encoded as its format says (hundredths
+    /// for `cCeE`); text fields are left empty.
+    ///
+    /// # Panics
+    /// When `kind` has no format.
+    pub fn row(&mut self, kind: u8, values: &[f64]) -> &mut Self {
+        let format = self.formats[&kind].clone();
+        self.bytes.extend_from_slice(&HEAD);
+        self.bytes.push(kind);
+        let mut v = values.iter().copied();
+        for c in format.chars() {
+            let x = if matches!(c, 'n' | 'N' | 'Z') {
+                0.0
+            } else {
+                v.next().unwrap_or(0.0)
+            };
+            encode(&mut self.bytes, c, x, "");
+        }
+        self
+    }
+
+    /// A parameter (`PARM`, defined on first use).
+    pub fn param(&mut self, time_us: u64, name: &str, value: f64) -> &mut Self {
+        self.define_once(PARM_KIND, "PARM", "QNf", "TimeUS,Name,Value");
+        self.bytes.extend_from_slice(&HEAD);
+        self.bytes.push(PARM_KIND);
+        self.bytes.extend_from_slice(&time_us.to_le_bytes());
+        self.bytes.extend(fixed(name, 16));
+        self.bytes.extend_from_slice(&(value as f32).to_le_bytes());
+        self
+    }
+
+    /// Declares the unit and multiplier ids of `kind`'s fields (`FMTU`, defined on first use).
+    pub fn units(&mut self, kind: u8, unit_ids: &str, mult_ids: &str) -> &mut Self {
+        self.define_once(FMTU_KIND, "FMTU", "QBNN", "TimeUS,FmtType,UnitIds,MultIds");
+        self.bytes.extend_from_slice(&HEAD);
+        self.bytes.push(FMTU_KIND);
+        self.bytes.extend_from_slice(&0u64.to_le_bytes());
+        self.bytes.push(kind);
+        self.bytes.extend(fixed(unit_ids, 16));
+        self.bytes.extend(fixed(mult_ids, 16));
+        self
+    }
+
+    /// Names unit id `id` (`UNIT`, defined on first use).
+    pub fn unit(&mut self, id: char, label: &str) -> &mut Self {
+        self.define_once(UNIT_KIND, "UNIT", "QbZ", "TimeUS,Id,Label");
+        self.bytes.extend_from_slice(&HEAD);
+        self.bytes.push(UNIT_KIND);
+        self.bytes.extend_from_slice(&0u64.to_le_bytes());
+        self.bytes.push(id as u8);
+        self.bytes.extend(fixed(label, 64));
+        self
+    }
+
+    /// Gives multiplier id `id` its factor (`MULT`, defined on first use).
+    pub fn mult(&mut self, id: char, factor: f64) -> &mut Self {
+        self.define_once(MULT_KIND, "MULT", "Qbd", "TimeUS,Id,Mult");
+        self.bytes.extend_from_slice(&HEAD);
+        self.bytes.push(MULT_KIND);
+        self.bytes.extend_from_slice(&0u64.to_le_bytes());
+        self.bytes.push(id as u8);
+        self.bytes.extend_from_slice(&factor.to_le_bytes());
+        self
+    }
+
+    /// The bytes written so far.
+    pub fn into_bytes(self) -> Vec<u8> {
+        self.bytes
+    }
+
+    fn define_once(&mut self, kind: u8, name: &str, format: &str, labels: &str) {
+        if !self.formats.contains_key(&kind) {
+            self.format(kind, name, format, labels);
+        }
+    }
+}
+
+fn field_size(c: char) -> usize {
+    match c {
+        'B' | 'b' => 1,
+        'H' | 'h' | 'c' | 'C' => 2,
+        'f' | 'I' | 'i' | 'e' | 'E' | 'n' => 4,
+        'Q' | 'q' | 'd' => 8,
+        'N' => 16,
+        'Z' => 64,
+        _ => panic!("format character {c:?} is not one the DataFlash builder writes"),
+    }
+}
+
+fn fixed(s: &str, len: usize) -> Vec<u8> {
+    let mut b = s.as_bytes().to_vec();
+    b.resize(len, 0);
+    b
+}
+
+fn encode(out: &mut Vec<u8>, c: char, x: f64, text: &str) {
+    match c {
+        'b' => out.push(x.round() as i8 as u8),
+        'B' => out.push(x.round() as u8),
+        'h' => out.extend((x.round() as i16).to_le_bytes()),
+        'H' => out.extend((x.round() as u16).to_le_bytes()),
+        'c' => out.extend(((x * 100.0).round() as i16).to_le_bytes()),
+        'C' => out.extend(((x * 100.0).round() as u16).to_le_bytes()),
+        'i' => out.extend((x.round() as i32).to_le_bytes()),
+        'I' => out.extend((x.round() as u32).to_le_bytes()),
+        'e' => out.extend(((x * 100.0).round() as i32).to_le_bytes()),
+        'E' => out.extend(((x * 100.0).round() as u32).to_le_bytes()),
+        'q' => out.extend((x.round() as i64).to_le_bytes()),
+        'Q' => out.extend((x.round() as u64).to_le_bytes()),
+        'f' => out.extend((x as f32).to_le_bytes()),
+        'd' => out.extend(x.to_le_bytes()),
+        _ => out.extend(fixed(text, field_size(c))),
+    }
 }
 
 /// The recording as DataFlash bytes (current message layout: `TimeUS`, `MAG` with an
-/// instance field, `RCOU` `C1..`, `BAT` in volts and amperes, `ATT` in degrees).
+/// instance field, `RCOU` `C1..`, `BAT` in volts and amperes, `ATT` in degrees, units
+/// declared by `FMTU`).
 pub fn dataflash_bytes(rec: &Recording, opts: &LogWriteOptions) -> Vec<u8> {
+    const MAG: u8 = 0x82;
+    const RCOU: u8 = 0x83;
+    const BAT: u8 = 0x84;
+    const ATT: u8 = 0x85;
+    const EV: u8 = 0x86;
     let n = rec.motor_count().min(14);
-    let mut out = Vec::new();
-    fmt_msg(
-        &mut out,
-        0x80,
-        "FMT",
-        "BBnNZ",
-        "Type,Length,Name,Format,Labels",
-    );
-    fmt_msg(&mut out, 0x81, "PARM", "QNf", "TimeUS,Name,Value");
-    fmt_msg(&mut out, 0x82, "MAG", "QBfff", "TimeUS,I,MagX,MagY,MagZ");
+    let mut b = DataflashBuilder::new();
+    b.format(MAG, "MAG", "QBfff", "TimeUS,I,MagX,MagY,MagZ");
     let rcou_fmt = format!("Q{}", "H".repeat(n));
     let rcou_labels = std::iter::once("TimeUS".to_string())
         .chain((1..=n).map(|c| format!("C{c}")))
         .collect::<Vec<_>>()
         .join(",");
-    fmt_msg(&mut out, 0x83, "RCOU", &rcou_fmt, &rcou_labels);
-    fmt_msg(&mut out, 0x84, "BAT", "QBff", "TimeUS,Inst,Volt,Curr");
-    fmt_msg(&mut out, 0x85, "ATT", "Qfff", "TimeUS,Roll,Pitch,Yaw");
-    fmt_msg(&mut out, 0x86, "EV", "QB", "TimeUS,Id");
+    b.format(RCOU, "RCOU", &rcou_fmt, &rcou_labels)
+        .format(BAT, "BAT", "QBff", "TimeUS,Inst,Volt,Curr")
+        .format(ATT, "ATT", "Qfff", "TimeUS,Roll,Pitch,Yaw")
+        .format(EV, "EV", "QB", "TimeUS,Id");
+    // Units as ArduPilot declares them: the magnetometer in milligauss (gauss x 1e-3).
+    b.unit('s', "s")
+        .unit('#', "instance")
+        .unit('G', "Gauss")
+        .unit('v', "V")
+        .unit('A', "A")
+        .unit('d', "deg")
+        .unit('Y', "us")
+        .mult('-', 0.0)
+        .mult('0', 1.0)
+        .mult('C', 1e-3)
+        .mult('F', 1e-6)
+        .units(MAG, "s#GGG", "F-CCC")
+        .units(
+            RCOU,
+            &format!("s{}", "Y".repeat(n)),
+            &format!("F{}", "-".repeat(n)),
+        )
+        .units(BAT, "s#vA", "F-00")
+        .units(ATT, "sddd", "F000");
     let t0 = micros(rec.t_s.first().copied().unwrap_or(0.0));
     let mut params: Vec<(String, f64)> = vec![
         ("MOT_PWM_MIN".into(), 1000.0),
@@ -217,60 +385,32 @@ pub fn dataflash_bytes(rec: &Recording, opts: &LogWriteOptions) -> Vec<u8> {
     ];
     params.extend((1..=n).map(|c| (format!("SERVO{c}_FUNCTION"), 32.0 + c as f64)));
     for (name, v) in &params {
-        out.extend_from_slice(&HEAD);
-        out.push(0x81);
-        out.extend_from_slice(&t0.to_le_bytes());
-        let mut b = name.as_bytes().to_vec();
-        b.resize(16, 0);
-        out.extend(b);
-        out.extend_from_slice(&(*v as f32).to_le_bytes());
+        b.param(t0, name, *v);
     }
-    let ev = |out: &mut Vec<u8>, us: u64, id: u8| {
-        out.extend_from_slice(&HEAD);
-        out.push(0x86);
-        out.extend_from_slice(&us.to_le_bytes());
-        out.push(id);
-    };
-    ev(&mut out, t0, 10);
+    b.row(EV, &[t0 as f64, 10.0]);
     if !opts.landed {
-        ev(&mut out, t0, 28);
+        b.row(EV, &[t0 as f64, 28.0]);
     }
     for r in 0..rec.len() {
-        let us = micros(rec.t_s[r]);
-        out.extend_from_slice(&HEAD);
-        out.push(0x82);
-        out.extend_from_slice(&us.to_le_bytes());
-        out.push(0);
-        // Milligauss.
-        for k in 0..3 {
-            out.extend_from_slice(&((rec.mag_ut[r][k] * 10.0) as f32).to_le_bytes());
-        }
-        out.extend_from_slice(&HEAD);
-        out.push(0x83);
-        out.extend_from_slice(&us.to_le_bytes());
-        for m in 0..n {
-            let pwm = (1000.0 + 1000.0 * rec.thr[m][r]).round() as u16;
-            out.extend_from_slice(&pwm.to_le_bytes());
-        }
+        let us = micros(rec.t_s[r]) as f64;
+        let m = rec.mag_ut[r] * 10.0;
+        b.row(MAG, &[us, 0.0, m.x, m.y, m.z]);
+        let pwm: Vec<f64> = std::iter::once(us)
+            .chain((0..n).map(|k| (1000.0 + 1000.0 * rec.thr[k][r]).round()))
+            .collect();
+        b.row(RCOU, &pwm);
         if let (Some(v), Some(a)) = (&rec.bat_v, &rec.bat_a) {
-            out.extend_from_slice(&HEAD);
-            out.push(0x84);
-            out.extend_from_slice(&us.to_le_bytes());
-            out.push(0);
-            out.extend_from_slice(&(v[r] as f32).to_le_bytes());
-            out.extend_from_slice(&(a[r] as f32).to_le_bytes());
+            b.row(BAT, &[us, 0.0, v[r], a[r]]);
         }
         if let Some(q) = &rec.attitude {
             let (roll, pitch, yaw) = q[r].euler_angles();
-            out.extend_from_slice(&HEAD);
-            out.push(0x85);
-            out.extend_from_slice(&us.to_le_bytes());
-            for a in [roll, pitch, yaw] {
-                out.extend_from_slice(&(a.to_degrees() as f32).to_le_bytes());
-            }
+            b.row(
+                ATT,
+                &[us, roll.to_degrees(), pitch.to_degrees(), yaw.to_degrees()],
+            );
         }
     }
-    out
+    b.into_bytes()
 }
 
 /// Writes the recording as a ULog file, atomically.
