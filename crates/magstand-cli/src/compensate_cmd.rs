@@ -11,6 +11,7 @@ use magstand_ident::metrics::{Evaluation, against_truth};
 
 /// Arguments of `magstand compensate`.
 #[derive(Args)]
+#[command(allow_negative_numbers = true)]
 pub struct CompensateArgs {
     /// Model file written by `magstand fit`, or an augmented model written by
     /// `magstand diagnose --model-out`.

@@ -15,6 +15,7 @@ use magstand_ident::metrics::Evaluation;
 
 /// Arguments of `magstand demo`.
 #[derive(Args)]
+#[command(allow_negative_numbers = true)]
 pub struct DemoArgs {
     /// Folder for the demo's files.
     #[arg(long, default_value = "magstand-demo")]

@@ -13,6 +13,7 @@ use magstand_sim::Scenario;
 
 /// Arguments of `magstand diagnose`.
 #[derive(Args)]
+#[command(allow_negative_numbers = true)]
 pub struct DiagnoseArgs {
     /// Recording CSV.
     #[arg(long)]

@@ -45,6 +45,7 @@ enum InputArg {
 
 /// Arguments of `magstand export`.
 #[derive(Args)]
+#[command(allow_negative_numbers = true)]
 pub struct ExportArgs {
     /// Model file written by `magstand fit`.
     #[arg(long)]

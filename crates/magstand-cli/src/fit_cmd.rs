@@ -55,6 +55,7 @@ pub enum WeightingArg {
 
 /// Arguments of `magstand fit`.
 #[derive(Args)]
+#[command(allow_negative_numbers = true)]
 pub struct FitArgs {
     /// Recording CSV.
     #[arg(long)]

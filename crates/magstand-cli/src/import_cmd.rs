@@ -10,6 +10,7 @@ use magstand_logs::import::{ImportOptions, SegmentKind, import_bytes};
 
 /// Arguments of `magstand import`.
 #[derive(Args)]
+#[command(allow_negative_numbers = true)]
 #[command(group(clap::ArgGroup::new("log").required(true).args(["ulog", "dataflash"])))]
 pub struct ImportArgs {
     /// A PX4 ULog file (.ulg).

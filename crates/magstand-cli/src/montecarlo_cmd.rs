@@ -12,6 +12,7 @@ use magstand_study::{Shard, StudyConfig, StudyResult, Summary, run_study, write_
 
 /// Arguments of `magstand montecarlo`.
 #[derive(Args)]
+#[command(allow_negative_numbers = true)]
 #[command(args_conflicts_with_subcommands = true, subcommand_negates_reqs = true)]
 pub struct MonteCarloArgs {
     #[command(subcommand)]
@@ -27,6 +28,7 @@ enum MonteCarloCommand {
 }
 
 #[derive(Args)]
+#[command(allow_negative_numbers = true)]
 struct StudyArgs {
     /// Scenario file, or `builtin:NAME`. Its `[study]` table sets the validation series and
     /// the parameters drawn per run.
@@ -66,6 +68,7 @@ struct StudyArgs {
 }
 
 #[derive(Args)]
+#[command(allow_negative_numbers = true)]
 struct MergeArgs {
     /// Shard output folders.
     #[arg(required = true)]

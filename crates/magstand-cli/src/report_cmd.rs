@@ -14,6 +14,7 @@ use magstand_study::{StudyResult, Summary};
 
 /// Arguments of `magstand report`.
 #[derive(Args)]
+#[command(allow_negative_numbers = true)]
 pub struct ReportArgs {
     /// Recording to show (for a model: a validation run it was not fitted on).
     #[arg(long)]

@@ -12,6 +12,7 @@ use magstand_sim::{Scenario, simulate_observed};
 
 /// Arguments of `magstand simulate`.
 #[derive(Args)]
+#[command(allow_negative_numbers = true)]
 pub struct SimulateArgs {
     /// Scenario file (TOML), or `builtin:NAME` for a shipped scenario.
     #[arg(long)]
