@@ -89,13 +89,16 @@ impl Recording {
         self.thr.iter().map(|m| m[row]).collect()
     }
 
-    /// Mean sample interval in seconds (0 for fewer than two rows).
-    pub fn mean_interval_s(&self) -> f64 {
-        let n = self.len();
-        if n < 2 {
+    /// Typical sample interval in seconds: the median of the intervals between rows (0 for
+    /// fewer than two rows). Unlike the mean it ignores the long gaps of a log that holds
+    /// several flights, which would make a 10 Hz log look like a 1 Hz one.
+    pub fn typical_interval_s(&self) -> f64 {
+        let mut d: Vec<f64> = self.t_s.windows(2).map(|w| w[1] - w[0]).collect();
+        if d.is_empty() {
             return 0.0;
         }
-        (self.t_s[n - 1] - self.t_s[0]) / (n - 1) as f64
+        let mid = d.len() / 2;
+        *d.select_nth_unstable_by(mid, f64::total_cmp).1
     }
 
     /// Keeps only the rows whose index satisfies `keep`, in every column.

@@ -212,7 +212,7 @@ pub fn prepare_flight(
         stacked(rec, &to_body, &delayed(&rec.t_s, &u, d), cfg.earth, origin)
     };
     // Grid over the delay, then golden section around the best grid point.
-    let dt = rec.mean_interval_s().max(1e-6);
+    let dt = rec.typical_interval_s().max(1e-6);
     let steps = ((cfg.max_delay_s / (dt / 2.0)).ceil() as usize).clamp(1, 60);
     let mut best = (0.0, rss_at(0.0)?);
     for k in 1..=steps {
@@ -274,7 +274,8 @@ pub fn prepare_flight(
         .collect();
     let yaw_span = yaw_coverage_deg(&yaws);
     let mut warnings = Vec::new();
-    if dt > 0.5 * cfg.max_delay_s {
+    // The relative margin keeps rows exactly half the search apart from warning on rounding.
+    if dt > 0.5 * cfg.max_delay_s * (1.0 + 1e-9) {
         warnings.push(format!(
             "{origin}: the magnetometer rows are {dt:.2} s apart, so a delay below {:.2} s cannot be resolved; the delay found ({delay_s:.3} s) rests on interpolation between rows",
             cfg.max_delay_s

@@ -113,8 +113,8 @@ impl ImportReport {
             rec.len(),
             rec.motor_count(),
             span(rec),
-            if rec.mean_interval_s() > 0.0 {
-                1.0 / rec.mean_interval_s()
+            if rec.typical_interval_s() > 0.0 {
+                1.0 / rec.typical_interval_s()
             } else {
                 0.0
             }
@@ -264,9 +264,13 @@ fn bracket(t: &[f64], x: f64, max_gap: f64) -> Option<(usize, f64)> {
     if i == 0 {
         return None;
     }
+    // Exactly on a sample: its own value, whatever gap follows (the last row of a flight
+    // before the next one, or of the log).
+    if t[i - 1] == x {
+        return Some((i - 1, 0.0));
+    }
     if i == t.len() {
-        // Exactly on the last sample.
-        return (t[i - 1] == x).then_some((i - 1, 0.0));
+        return None;
     }
     let (a, b) = (t[i - 1], t[i]);
     (b - a <= max_gap).then(|| (i - 1, (x - a) / (b - a)))
@@ -483,7 +487,7 @@ fn align(
                 .collect::<String>()
         )));
     }
-    report.segments = segments(&rec, &kinds);
+    report.segments = segments(&rec, &kinds, mag_gap);
     for (i, col) in esc_cols.into_iter().enumerate() {
         rec.extra.push((format!("esc_{}_a", i + 1), col));
     }
@@ -499,12 +503,14 @@ fn align(
     Ok(rec)
 }
 
-fn segments(rec: &Recording, kinds: &[SegmentKind]) -> Vec<Segment> {
+/// Runs of rows of one kind; a gap in the magnetometer stream longer than `gap_s` ends a run
+/// (two flights of one log are two segments).
+fn segments(rec: &Recording, kinds: &[SegmentKind], gap_s: f64) -> Vec<Segment> {
     let mut out: Vec<Segment> = Vec::new();
     for (r, k) in kinds.iter().enumerate() {
         let thr = rec.overall_throttle(r);
         match out.last_mut() {
-            Some(g) if g.kind == *k => {
+            Some(g) if g.kind == *k && rec.t_s[r] - g.span_s.1 <= gap_s => {
                 g.span_s.1 = rec.t_s[r];
                 g.rows += 1;
                 g.max_throttle = g.max_throttle.max(thr);

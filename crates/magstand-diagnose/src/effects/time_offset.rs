@@ -18,7 +18,7 @@ impl Effect for TimeOffset {
         // From one sample interval (shorter delays cannot be told from where in the interval
         // a logged command changed, which the baseline calibrates) to half a second, in steps
         // finer than one sample.
-        let dt = ctx.rec.mean_interval_s();
+        let dt = ctx.rec.typical_interval_s();
         Vec::from([Search {
             name: "mag_delay_s",
             unit: "s",
