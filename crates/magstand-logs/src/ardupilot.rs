@@ -211,44 +211,6 @@ fn motors(
             (1..=32).find(|c| log.param(&format!("SERVO{c}_FUNCTION")) == Some(33.0 + k as f64))
         })
         .collect();
-    let frame = match log.param("FRAME_CLASS").map(|v| v as i64) {
-        Some(1) => Some(4),
-        Some(2) | Some(5) => Some(6),
-        Some(3) | Some(4) => Some(8),
-        Some(7) => Some(3),
-        _ => None,
-    };
-    let n = match (opts.motors, by_function.len(), frame) {
-        (Some(n), _, _) => n,
-        (None, f, _) if f > 0 => f,
-        (None, _, Some(n)) => n,
-        // Old logs without FRAME_CLASS log only the motor channels of the frame.
-        (None, _, None) if (3..=4).contains(&logged) => logged,
-        _ => {
-            return Err(LogsError::Missing {
-                path: log.path.clone(),
-                what: format!(
-                    "the motor count (no SERVOn_FUNCTION = 33.., no FRAME_CLASS, {logged} RCOU channels)"
-                ),
-                hint: "give --motors N".into(),
-            });
-        }
-    };
-    let channels: Vec<usize> = if by_function.len() >= n && opts.motors.is_none() {
-        by_function[..n].to_vec()
-    } else {
-        (1..=n).collect()
-    };
-    let cols: Vec<&[f64]> = channels
-        .iter()
-        .map(|&c| {
-            channel(c).ok_or_else(|| LogsError::Missing {
-                path: log.path.clone(),
-                what: format!("RCOU channel {c}"),
-                hint: format!("the log has {logged} channels; check --motors"),
-            })
-        })
-        .collect::<Result<_, _>>()?;
     let positive = |n: &str| log.param(n).filter(|v| *v > 0.0);
     let (lo, hi, source) = match opts.pwm_range {
         Some((lo, hi)) => (lo, hi, "--pwm-range"),
@@ -273,8 +235,68 @@ fn motors(
             what: format!("motor PWM range {lo}..{hi} from {source} is empty"),
         });
     }
+    let frame_class = match log.param("FRAME_CLASS").map(|v| v as i64) {
+        Some(1) => Some(4),
+        Some(2) | Some(5) => Some(6),
+        Some(3) | Some(4) => Some(8),
+        Some(7) => Some(3),
+        _ => None,
+    };
+    let frame_text = log.text_after("Frame: ");
+    let (n, count_from) = if let Some(n) = opts.motors {
+        (n, "--motors".to_string())
+    } else if !by_function.is_empty() {
+        (by_function.len(), "SERVOn_FUNCTION".to_string())
+    } else if let Some(n) = frame_class {
+        (n, "FRAME_CLASS".to_string())
+    } else if let Some(n) = frame_text.and_then(motors_of_frame) {
+        (
+            n,
+            format!(
+                "the firmware's \"Frame: {}\" message",
+                frame_text.unwrap_or("")
+            ),
+        )
+    } else if (3..=4).contains(&logged) {
+        // Old logs without FRAME_CLASS may log only the motor channels of the frame.
+        (logged, format!("the {logged} logged RCOU channels"))
+    } else {
+        let all: Vec<&[f64]> = (1..=logged.min(12)).filter_map(channel).collect();
+        match motors_from_outputs(&all, lo, hi) {
+            Some(n) => (
+                n,
+                format!(
+                    "the outputs: RCOU channels 1..{n} move together in the motor range {lo}..{hi}, the others do not"
+                ),
+            ),
+            None => {
+                return Err(LogsError::Missing {
+                    path: log.path.clone(),
+                    what: format!(
+                        "the motor count (no SERVOn_FUNCTION = 33.., no FRAME_CLASS, no \"Frame:\" message, and the {logged} RCOU channels do not show which ones drive motors)"
+                    ),
+                    hint: "give --motors N".into(),
+                });
+            }
+        }
+    };
+    let channels: Vec<usize> = if by_function.len() >= n && opts.motors.is_none() {
+        by_function[..n].to_vec()
+    } else {
+        (1..=n).collect()
+    };
+    let cols: Vec<&[f64]> = channels
+        .iter()
+        .map(|&c| {
+            channel(c).ok_or_else(|| LogsError::Missing {
+                path: log.path.clone(),
+                what: format!("RCOU channel {c}"),
+                hint: format!("the log has {logged} channels; check --motors"),
+            })
+        })
+        .collect::<Result<_, _>>()?;
     out.notes.push(format!(
-        "motors: RCOU channels {channels:?}, PWM {lo}..{hi} from {source}"
+        "motors: RCOU channels {channels:?}, PWM {lo}..{hi} from {source}; motor count from {count_from}"
     ));
     let us: Vec<f64> = channels
         .iter()
@@ -299,6 +321,70 @@ fn motors(
         )
     }));
     Ok(())
+}
+
+/// Motor count of an ArduPilot frame name as the firmware prints it ("QUAD/X", "HEXA",
+/// "OCTA_QUAD", "Y6B"); `None` for a frame that is not a multirotor of known count.
+fn motors_of_frame(text: &str) -> Option<usize> {
+    let class = text.split(['/', ' ']).next()?.to_ascii_uppercase();
+    Some(match class.as_str() {
+        "TRI" => 3,
+        "QUAD" => 4,
+        "HEXA" | "Y6" | "Y6B" | "Y6F" => 6,
+        "OCTA" | "OCTAQUAD" | "OCTA_QUAD" => 8,
+        "DECA" => 10,
+        "DODECAHEXA" | "DODECA_HEXA" => 12,
+        _ => return None,
+    })
+}
+
+/// The motor count that the output channels themselves show, for logs that declare it
+/// nowhere: ArduCopter puts its motors on the first channels, and while they spin every
+/// motor sits in the motor PWM range and moves with the others (collective thrust), while a
+/// gimbal, camera or unused channel sits still or moves on its own. The count is the longest
+/// run of such channels from channel 1, when it is a frame's count (3, 4, 6, 8, 10, 12).
+fn motors_from_outputs(channels: &[&[f64]], lo: f64, hi: f64) -> Option<usize> {
+    let range = hi - lo;
+    let first = *channels.first()?;
+    // Rows where channel 1 drives a spinning motor.
+    let active: Vec<usize> = (0..first.len())
+        .filter(|&r| first[r] > lo + 0.05 * range && first[r] <= hi + 0.05 * range)
+        .collect();
+    if active.len() < 20 || channels.len() < 3 {
+        return None;
+    }
+    let column = |c: &[f64]| active.iter().map(|&r| c[r]).collect::<Vec<f64>>();
+    // The collective: the mean of the first three channels, which every frame drives.
+    let cols: Vec<Vec<f64>> = channels.iter().map(|c| column(c)).collect();
+    let collective: Vec<f64> = (0..active.len())
+        .map(|k| (cols[0][k] + cols[1][k] + cols[2][k]) / 3.0)
+        .collect();
+    let motor_like = |c: &[f64]| {
+        let in_range = c
+            .iter()
+            .filter(|v| (lo - 0.05 * range..=hi + 0.05 * range).contains(*v))
+            .count();
+        let mean = c.iter().sum::<f64>() / c.len() as f64;
+        let sd = (c.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / c.len() as f64).sqrt();
+        in_range as f64 >= 0.95 * c.len() as f64
+            && sd > 0.01 * range
+            && correlation(c, &collective).is_some_and(|r| r > 0.3)
+    };
+    let n = cols.iter().take_while(|c| motor_like(c)).count();
+    [3, 4, 6, 8, 10, 12].contains(&n).then_some(n)
+}
+
+/// Pearson correlation; `None` when either column is constant.
+fn correlation(a: &[f64], b: &[f64]) -> Option<f64> {
+    let n = a.len() as f64;
+    let (ma, mb) = (a.iter().sum::<f64>() / n, b.iter().sum::<f64>() / n);
+    let (mut sab, mut saa, mut sbb) = (0.0, 0.0, 0.0);
+    for (x, y) in a.iter().zip(b) {
+        sab += (x - ma) * (y - mb);
+        saa += (x - ma).powi(2);
+        sbb += (y - mb).powi(2);
+    }
+    (saa > 0.0 && sbb > 0.0).then(|| sab / (saa * sbb).sqrt())
 }
 
 fn position(log: &LogContents) -> Option<Position> {

@@ -99,6 +99,9 @@ pub struct LogContents {
     pub topics: BTreeMap<String, BTreeMap<u8, Series>>,
     /// ArduPilot `EV` events: (time s, id), in log order.
     pub events: Vec<(f64, i64)>,
+    /// ArduPilot `MSG` texts (firmware version, "Frame: QUAD", ...): (time s, text), in log
+    /// order.
+    pub texts: Vec<(f64, String)>,
     /// `None` when the file ended cleanly; otherwise how it broke off. What came before is kept.
     pub damage: Option<String>,
     /// DataFlash field layouts and declared units by message name (empty for ULog, whose
@@ -115,6 +118,7 @@ impl LogContents {
             params: BTreeMap::new(),
             topics: BTreeMap::new(),
             events: Vec::new(),
+            texts: Vec::new(),
             damage: None,
             field_units: FieldUnits::new(),
         }
@@ -139,6 +143,15 @@ impl LogContents {
                     .collect()
             })
             .unwrap_or_default()
+    }
+
+    /// The text after `prefix` of the first `MSG` that starts with it ("Frame: " gives
+    /// "QUAD/X").
+    pub fn text_after(&self, prefix: &str) -> Option<&str> {
+        self.texts
+            .iter()
+            .find_map(|(_, t)| t.strip_prefix(prefix))
+            .map(str::trim)
     }
 
     /// A parameter's value.

@@ -158,6 +158,12 @@ pub fn read_bytes(bytes: &[u8], path: &Path) -> Result<LogContents, LogsError> {
                 }
                 continue;
             }
+            "MSG" => {
+                if let Some(text) = entry.get_str("Message") {
+                    out.texts.push((now_s, text.to_string()));
+                }
+                continue;
+            }
             "MULT" => {
                 if let (Some(id), Some(m)) = (entry.get_f64("Id"), entry.get_f64("Mult")) {
                     multipliers.insert(id as u8 as char, m);

@@ -162,6 +162,7 @@ const PARM_KIND: u8 = 0xF0;
 const FMTU_KIND: u8 = 0xF1;
 const UNIT_KIND: u8 = 0xF2;
 const MULT_KIND: u8 = 0xF3;
+const MSG_KIND: u8 = 0xF4;
 
 /// DataFlash bytes built message by message: formats (`FMT`, and the `FMTU`, `UNIT` and
 /// `MULT` records that declare units), parameters and data rows encoded by their format.
@@ -248,6 +249,17 @@ impl DataflashBuilder {
         self.bytes.extend_from_slice(&time_us.to_le_bytes());
         self.bytes.extend(fixed(name, 16));
         self.bytes.extend_from_slice(&(value as f32).to_le_bytes());
+        self
+    }
+
+    /// A text message (`MSG`, defined on first use), as the firmware writes its version and
+    /// frame ("Frame: QUAD") at boot.
+    pub fn text(&mut self, time_us: u64, text: &str) -> &mut Self {
+        self.define_once(MSG_KIND, "MSG", "QZ", "TimeUS,Message");
+        self.bytes.extend_from_slice(&HEAD);
+        self.bytes.push(MSG_KIND);
+        self.bytes.extend_from_slice(&time_us.to_le_bytes());
+        self.bytes.extend(fixed(text, 64));
         self
     }
 
