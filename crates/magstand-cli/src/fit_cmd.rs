@@ -103,7 +103,7 @@ pub struct FitArgs {
     /// Altitude for --earth wmm, m.
     #[arg(long, default_value_t = 0.0)]
     alt_m: f64,
-    /// Date for --earth wmm, decimal year (2025.5 is mid-2025).
+    /// Date for --earth wmm, decimal year (2025.5 is mid-2025); 1900 to 2030.
     #[arg(long)]
     year: Option<f64>,
     /// Largest delay of the magnetometer behind the commands searched with --earth, s.
@@ -116,7 +116,9 @@ pub struct FitArgs {
 pub enum EarthArg {
     /// Fitted from the flight itself (needs turns).
     Fit,
-    /// The World Magnetic Model at --lat, --lon, --year.
+    /// The reference field at --lat, --lon, --year: the World Magnetic Model from 2020 to
+    /// 2030, IGRF-13 from 1900 to 2020.
+    #[value(alias = "igrf", alias = "model")]
     Wmm,
 }
 
@@ -129,6 +131,7 @@ fn take_out_earth_field(
     origin: &str,
 ) -> Result<(magstand_core::Recording, String)> {
     use magstand_ident::flight::{EarthField, FlightConfig, FlightInput, prepare_flight};
+    let mut model_name = "fitted";
     let field = match earth {
         EarthArg::Fit => EarthField::Fit,
         EarthArg::Wmm => {
@@ -137,7 +140,9 @@ fn take_out_earth_field(
                     "--earth wmm needs --lat, --lon and --year (magstand import prints them when the log has GPS)"
                 );
             };
-            EarthField::Known(magstand_logs::earth::wmm_ned_ut(lat, lon, a.alt_m, year)?)
+            let at = magstand_logs::earth::earth_field(lat, lon, a.alt_m, year)?;
+            model_name = at.model;
+            EarthField::Known(at.ned_ut)
         }
     };
     let cfg = FlightConfig {
@@ -152,10 +157,7 @@ fn take_out_earth_field(
     let e = p.earth_ned_ut;
     let summary = format!(
         "Earth field ({}): N {:.2} E {:.2} D {:.2} uT (|e| {:.2} uT, inclination {:.1} deg); magnetometer {:.3} s behind the {}; stacked-fit residual {:.2} uT RMS; attitude: tilt up to {:.0} deg, {:.0} deg of heading covered",
-        match earth {
-            EarthArg::Fit => "fitted",
-            EarthArg::Wmm => "WMM",
-        },
+        model_name,
         e.x,
         e.y,
         e.z,

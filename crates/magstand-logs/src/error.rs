@@ -7,6 +7,9 @@ pub enum LogsError {
     /// The model cannot be exported in the requested form.
     #[error("cannot export: {0}")]
     Export(String),
+    /// The Earth-field models have no field for the place or date asked.
+    #[error("Earth field: {0}")]
+    EarthModel(String),
     /// The file could not be read or written.
     #[error("{path}: {source}")]
     Io {
