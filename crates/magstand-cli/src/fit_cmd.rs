@@ -109,6 +109,10 @@ pub struct FitArgs {
     /// Largest delay of the magnetometer behind the commands searched with --earth, s.
     #[arg(long, default_value_t = 0.5)]
     max_delay_s: f64,
+    /// With --earth: rows tilted further than this from level (a flip, a crash) are left out,
+    /// degrees; 180 keeps every row.
+    #[arg(long, default_value_t = magstand_ident::flight::DEFAULT_MAX_TILT_DEG)]
+    max_tilt_deg: f64,
 }
 
 /// Earth-field source on the command line.
@@ -152,6 +156,7 @@ fn take_out_earth_field(
             _ => FlightInput::Throttle,
         },
         max_delay_s: a.max_delay_s,
+        max_tilt_deg: a.max_tilt_deg,
     };
     let p = prepare_flight(rec, &cfg, origin)?;
     let e = p.earth_ned_ut;

@@ -48,6 +48,9 @@ pub struct FlightConfig {
     pub input: FlightInput,
     /// Largest delay searched, s.
     pub max_delay_s: f64,
+    /// Rows tilted further from level than this, degrees, are left out: a flip or a crash,
+    /// where the vehicle is not flying on its motors as the model assumes.
+    pub max_tilt_deg: f64,
 }
 
 impl Default for FlightConfig {
@@ -56,9 +59,15 @@ impl Default for FlightConfig {
             earth: EarthField::Fit,
             input: FlightInput::Throttle,
             max_delay_s: 0.5,
+            max_tilt_deg: DEFAULT_MAX_TILT_DEG,
         }
     }
 }
+
+/// Default of [`FlightConfig::max_tilt_deg`]: beyond the 30 to 70 degrees that multirotor
+/// firmware lets a pilot lean (ArduPilot's ANGLE_MAX tops out at 80 degrees with 30 by
+/// default), short of the 90 degrees at which a multirotor is on its side.
+pub const DEFAULT_MAX_TILT_DEG: f64 = 75.0;
 
 /// What the flight preparation found.
 #[derive(Debug, Clone, PartialEq)]
@@ -90,7 +99,8 @@ fn delayed(t: &[f64], u: &[f64], delay_s: f64) -> Vec<f64> {
 /// not vary, the solver names one of its columns as the dependent one.
 const PER_AXIS: usize = 4;
 
-/// Fits the stacked model at one delay; returns (Earth field, residual RMS).
+/// Fits the stacked model at one delay; returns (Earth field, residual RMS, the variances of
+/// the fitted Earth field's components when it is fitted).
 /// `to_body[r]` is the rotation from north-east-down to the body frame at row `r` (R^T),
 /// computed once for every delay tried.
 fn stacked(
@@ -99,7 +109,7 @@ fn stacked(
     u: &[f64],
     earth: EarthField,
     origin: &str,
-) -> Result<(Vec3, f64), IdentError> {
+) -> Result<(Vec3, f64, Option<Vec3>), IdentError> {
     let scale = u.iter().fold(0.0f64, |m, v| m.max(v.abs())).max(1e-12);
     let ne = if earth == EarthField::Fit { 3 } else { 0 };
     let p = ne + 3 * PER_AXIS;
@@ -144,6 +154,9 @@ fn stacked(
         },
     })?;
     let mut sse = 0.0;
+    // Sum of products of consecutive residuals per axis, for their lag-1 autocorrelation.
+    let mut lagged = 0.0;
+    let mut previous = [f64::NAN; 3];
     for r in 0..rec.len() {
         for a in 0..3 {
             let y = row(r, a, &mut x);
@@ -152,14 +165,37 @@ fn stacked(
                 .zip(coef.column(0).iter())
                 .map(|(a, b)| a * b)
                 .sum();
-            sse += (y - fit).powi(2);
+            let e = y - fit;
+            sse += e * e;
+            if previous[a].is_finite() {
+                lagged += e * previous[a];
+            }
+            previous[a] = e;
         }
     }
-    let e = match earth {
-        EarthField::Fit => Vec3::from_fn(|j, _| coef[(3 * PER_AXIS + j, 0)]),
-        EarthField::Known(e) => e,
+    let (e, var) = match earth {
+        EarthField::Fit => {
+            // Residual variance times the diagonal of (X^T X)^-1: how well the attitude
+            // changes separate the Earth field from the offsets.
+            // In flight the residual is mostly slow misfit, not white noise: the variance is
+            // inflated by (1 + rho) / (1 - rho) for the residuals' lag-1 autocorrelation rho,
+            // the usual effective-sample-size correction.
+            let dof = (3 * rec.len()).saturating_sub(p).max(1) as f64;
+            let rho = if sse > 0.0 {
+                (lagged / sse).clamp(0.0, 0.99)
+            } else {
+                0.0
+            };
+            let inflation = (1.0 + rho) / (1.0 - rho);
+            let var = ne_acc
+                .coefficient_variances()
+                .ok()
+                .map(|d| Vec3::from_fn(|j, _| d[3 * PER_AXIS + j] * sse / dof * inflation));
+            (Vec3::from_fn(|j, _| coef[(3 * PER_AXIS + j, 0)]), var)
+        }
+        EarthField::Known(e) => (e, None),
     };
-    Ok((e, (sse / (3 * rec.len()) as f64).sqrt()))
+    Ok((e, (sse / (3 * rec.len()) as f64).sqrt(), var))
 }
 
 /// Takes the Earth field out of a flight recording and estimates the stream delay.
@@ -197,6 +233,41 @@ pub fn prepare_flight(
             rec.len()
         )));
     }
+    if !(cfg.max_tilt_deg.is_finite() && (0.0..=180.0).contains(&cfg.max_tilt_deg)) {
+        return Err(IdentError::InvalidSetting {
+            key: "max-tilt-deg".into(),
+            value: cfg.max_tilt_deg.to_string(),
+            expected: "0..180 degrees".into(),
+        });
+    }
+    let tilts: Vec<f64> = att.iter().map(tilt_deg).collect();
+    let steep: Vec<usize> = (0..rec.len())
+        .filter(|&r| tilts[r] > cfg.max_tilt_deg)
+        .collect();
+    if let (Some(&first), Some(&last)) = (steep.first(), steep.last()) {
+        let level = rec.select_rows(|r| tilts[r] <= cfg.max_tilt_deg);
+        let worst = steep.iter().map(|&r| tilts[r]).fold(0.0, f64::max);
+        let note = format!(
+            "{origin}: {} rows between {:.1} and {:.1} s are tilted beyond {:.0} deg (up to {worst:.0} deg: a flip or a crash) and are left out; --max-tilt-deg 180 keeps them",
+            steep.len(),
+            rec.t_s[first],
+            rec.t_s[last],
+            cfg.max_tilt_deg
+        );
+        if level.len() < 20 {
+            return Err(data(format!(
+                "{note}, which leaves {} rows; a flight fit needs at least 20",
+                level.len()
+            )));
+        }
+        let all = FlightConfig {
+            max_tilt_deg: 180.0,
+            ..*cfg
+        };
+        let mut p = prepare_flight(&level, &all, origin)?;
+        p.warnings.insert(0, note);
+        return Ok(p);
+    }
     let u: Vec<f64> = match cfg.input {
         FlightInput::Throttle => rec.overall_throttle_column(),
         FlightInput::Current => rec
@@ -208,7 +279,7 @@ pub fn prepare_flight(
         .iter()
         .map(|q| q.to_rotation_matrix().matrix().transpose())
         .collect();
-    let rss_at = |d: f64| -> Result<(Vec3, f64), IdentError> {
+    let rss_at = |d: f64| -> Result<(Vec3, f64, Option<Vec3>), IdentError> {
         stacked(rec, &to_body, &delayed(&rec.t_s, &u, d), cfg.earth, origin)
     };
     // Grid over the delay, then golden section around the best grid point.
@@ -241,7 +312,7 @@ pub fn prepare_flight(
     if r.1 < best.1.1 {
         best = (mid, r);
     }
-    let (delay_s, (earth, rms)) = best;
+    let (delay_s, (earth, rms, earth_var)) = best;
 
     let mut out = rec.clone();
     for m in out.thr.iter_mut() {
@@ -264,10 +335,7 @@ pub fn prepare_flight(
             *f += earth - att[r].inverse() * earth;
         }
     }
-    let tilt = att
-        .iter()
-        .map(|q| (q * Vec3::z()).angle(&Vec3::z()).to_degrees())
-        .fold(0.0, f64::max);
+    let tilt = tilts.iter().copied().fold(0.0, f64::max);
     let yaws: Vec<f64> = att
         .iter()
         .map(|q| q.euler_angles().2.to_degrees())
@@ -280,6 +348,18 @@ pub fn prepare_flight(
             "{origin}: the magnetometer rows are {dt:.2} s apart, so a delay below {:.2} s cannot be resolved; the delay found ({delay_s:.3} s) rests on interpolation between rows",
             cfg.max_delay_s
         ));
+    }
+    if let Some(var) = earth_var {
+        let sd = inclination_sd_deg(earth, var);
+        // Two standard errors of inclination beyond 2 degrees: the attitude changes do not
+        // separate the Earth field from the offsets well enough to trust it.
+        if !(2.0 * sd <= 2.0) {
+            warnings.push(format!(
+                "{origin}: the flight covers {yaw_span:.0} deg of heading (tilt up to {tilt:.0} deg), too little to tell the Earth field from the sensor offset: the fitted inclination {:.1} deg is uncertain by about {:.1} deg (2 standard errors); give the reference field with --earth wmm --lat --lon --year",
+                earth.z.atan2(earth.xy().norm()).to_degrees(),
+                2.0 * sd
+            ));
+        }
     }
     if delay_s >= cfg.max_delay_s - 0.5 * h {
         warnings.push(format!(
@@ -295,6 +375,26 @@ pub fn prepare_flight(
         attitude_span_deg: (tilt, yaw_span),
         warnings,
     })
+}
+
+/// Angle between the body's down axis and the vertical, degrees.
+fn tilt_deg(q: &magstand_core::Quat) -> f64 {
+    (q * Vec3::z()).angle(&Vec3::z()).to_degrees()
+}
+
+/// Standard error of the inclination of `e` (degrees) from the variances of its components,
+/// by the delta method (covariances between components left out).
+fn inclination_sd_deg(e: Vec3, var: Vec3) -> f64 {
+    let h = e.xy().norm();
+    let n2 = e.norm_squared();
+    if h <= 0.0 || n2 <= 0.0 {
+        return f64::INFINITY;
+    }
+    // I = atan2(z, h): dI/dx = -z x / (h n^2), dI/dy = -z y / (h n^2), dI/dz = h / n^2.
+    let g = Vec3::new(-e.z * e.x / (h * n2), -e.z * e.y / (h * n2), h / n2);
+    (g.x * g.x * var.x + g.y * g.y * var.y + g.z * g.z * var.z)
+        .sqrt()
+        .to_degrees()
 }
 
 /// Degrees of the compass rose covered by a set of headings (360 minus the largest gap).
@@ -407,5 +507,108 @@ mod tests {
             "{:?}",
             p.warnings
         );
+    }
+
+    /// A flight with `yaw_amp_rad` of heading swing and `tilt_rad` of roll and pitch, read
+    /// with 0.5 µT of (deterministic, pseudo-random) noise and a slow 1.5 µT drift that no
+    /// model term follows (as a warming board or a wandering offset does in a real log).
+    fn swinging_flight(yaw_amp_rad: f64, tilt_rad: f64) -> Recording {
+        let earth = Vec3::new(20.0, 2.0, 45.0);
+        let b = Vec3::new(3.0, -4.0, 6.0);
+        let mut state = 0x2545_f491_4f6c_dd1d_u64;
+        let mut noise = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        };
+        let mut rec = Recording {
+            thr: vec![Vec::new()],
+            attitude: Some(Vec::new()),
+            ..Recording::default()
+        };
+        for k in 0..1200 {
+            let t = k as f64 * 0.05;
+            let q = Quat::from_euler_angles(
+                tilt_rad * (0.2 * t).sin(),
+                tilt_rad * (0.13 * t).cos(),
+                yaw_amp_rad * (0.05 * t).sin(),
+            );
+            let u = 0.4 + 0.3 * (0.9 * t).sin() * (0.31 * t).cos();
+            let d = Vec3::new(8.0 * u * u, -5.0 * u, 12.0 * u * u);
+            let n = Vec3::new(noise(), noise(), noise()) * 1.7
+                + Vec3::new(1.5, -1.0, 1.2) * (0.07 * t + 1.0).sin();
+            rec.t_s.push(t);
+            rec.thr[0].push(u);
+            rec.mag_ut.push(q.inverse() * earth + b + d + n);
+            rec.attitude.as_mut().unwrap().push(q);
+        }
+        rec
+    }
+
+    /// Regression: a flight that covered 8 degrees of heading fitted an inclination of 76.8
+    /// degrees where the site's model gave 66.9, and nothing was said. The uncertainty of the
+    /// fitted inclination is now checked and reported.
+    #[test]
+    fn too_little_turning_to_separate_the_earth_field_is_said() {
+        let narrow = prepare_flight(
+            &swinging_flight(4f64.to_radians(), 1f64.to_radians()),
+            &FlightConfig::default(),
+            "narrow",
+        )
+        .unwrap();
+        assert!(
+            narrow
+                .warnings
+                .iter()
+                .any(|w| w.contains("too little to tell the Earth field")
+                    && w.contains("--earth wmm")),
+            "{:?}",
+            narrow.warnings
+        );
+        let wide =
+            prepare_flight(&swinging_flight(3.0, 0.3), &FlightConfig::default(), "wide").unwrap();
+        assert!(
+            wide.warnings.iter().all(|w| !w.contains("Earth field")),
+            "{:?}",
+            wide.warnings
+        );
+        assert!(
+            // The unmodelled drift moves it by about a microtesla.
+            (wide.earth_ned_ut - Vec3::new(20.0, 2.0, 45.0)).norm() < 2.0,
+            "{:?}",
+            wide.earth_ned_ut
+        );
+    }
+
+    /// Regression: rows of a flip (tilt up to 178 degrees in log171) went into the flight fit
+    /// unannounced. They are now left out by default, with a warning.
+    #[test]
+    fn rows_of_a_flip_are_left_out_and_said() {
+        let mut rec = swinging_flight(3.0, 0.3);
+        let att = rec.attitude.as_mut().unwrap();
+        for q in att[1100..].iter_mut() {
+            *q = Quat::from_euler_angles(std::f64::consts::PI * 0.95, 0.0, 0.0);
+        }
+        let p = prepare_flight(&rec, &FlightConfig::default(), "flip").unwrap();
+        assert_eq!(p.recording.len(), 1100);
+        assert!(
+            p.warnings[0].contains("100 rows") && p.warnings[0].contains("171 deg"),
+            "{:?}",
+            p.warnings
+        );
+        let keep = FlightConfig {
+            max_tilt_deg: 180.0,
+            ..FlightConfig::default()
+        };
+        assert_eq!(
+            prepare_flight(&rec, &keep, "flip").unwrap().recording.len(),
+            1200
+        );
+        let bad = FlightConfig {
+            max_tilt_deg: f64::NAN,
+            ..FlightConfig::default()
+        };
+        assert!(prepare_flight(&rec, &bad, "flip").is_err());
     }
 }
