@@ -282,12 +282,16 @@ fn print_compatibility(model: &Model, rec: &magstand_core::Recording, origin: &s
         "", "r2 x / y / z", "holdout_rmse_ut x / y / z", "interference"
     );
     for (name, f) in [
-        ("magstand", &c.model),
-        ("PX4 line", &c.px4),
-        ("compassmot", &c.ardupilot),
+        ("magstand", Some(&c.model)),
+        ("PX4 line", Some(&c.px4)),
+        ("compassmot", c.ardupilot.as_ref()),
     ] {
+        let Some(f) = f else {
+            println!("{name:>12} {:>75}", "withheld (below)");
+            continue;
+        };
         println!(
-            "{name:>12} {:>7.4} {:>7.4} {:>7.4} {:>8.3} {:>8.3} {:>8.3} {:>11.0} %",
+            "{name:>12} {:>7.4} {:>7.4} {:>7.4} {:>8.3} {:>8.3} {:>8.3} {:>13}",
             f.r2[0],
             f.r2[1],
             f.r2[2],
@@ -295,7 +299,11 @@ fn print_compatibility(model: &Model, rec: &magstand_core::Recording, origin: &s
             f.holdout_rmse_ut[1],
             f.holdout_rmse_ut[2],
             f.interference_pct
+                .map_or("withheld".to_string(), |p| format!("{p:.0} %"))
         );
+    }
+    for w in &c.withheld {
+        println!("withheld: {w}");
     }
     println!(
         "(ArduPilot's guidance on interference: below 30 % fine, 30-60 % a grey zone, above 60 % unacceptable)"

@@ -29,8 +29,9 @@ pub struct Figures {
     pub r2: [f64; 3],
     /// RMSE on held-out time blocks of a fit that did not see them, per axis, µT.
     pub holdout_rmse_ut: [f64; 3],
-    /// Predicted field change at the top of the recorded input range in percent of 530 mG.
-    pub interference_pct: f64,
+    /// Predicted field change at the top of the recorded input range in percent of 530 mG;
+    /// `None` when too few rows stand near the top (see [`Compatibility::withheld`]).
+    pub interference_pct: Option<f64>,
 }
 
 /// A model beside the PX4 and ArduPilot lines fitted to the same data.
@@ -40,11 +41,20 @@ pub struct Compatibility {
     pub model: Figures,
     /// PX4's line (slope only).
     pub px4: Figures,
-    /// ArduPilot compassmot's running-average line.
-    pub ardupilot: Figures,
+    /// ArduPilot compassmot's running-average line; `None` when too few rows update it for
+    /// its figures to mean anything (see [`Compatibility::withheld`]).
+    pub ardupilot: Option<Figures>,
+    /// Why figures were withheld, in words.
+    pub withheld: Vec<String>,
 }
 
-fn figures(model: &Model, top: f64) -> Result<Figures, IdentError> {
+/// Rows that must lie within [`TOP_BAND`] of the top of the recorded input range for a figure
+/// at the top to be given: the mean of ten rows has a third of one row's scatter.
+pub const MIN_TOP_ROWS: usize = 10;
+/// Width of the band below the top of the recorded range, as a fraction of the range.
+pub const TOP_BAND: f64 = 0.1;
+
+fn figures(model: &Model, top: Option<f64>) -> Result<Figures, IdentError> {
     let summary: &FitSummary = model.summary.as_ref().ok_or_else(|| IdentError::Data {
         origin: model.method.clone(),
         message: "the model has no fit summary (it was not fitted by magstand fit)".into(),
@@ -53,7 +63,8 @@ fn figures(model: &Model, top: f64) -> Result<Figures, IdentError> {
     Ok(Figures {
         r2: summary.r2,
         holdout_rmse_ut: summary.holdout_rmse_ut,
-        interference_pct: ardupilot_interference_pct(model.dist_at_input(top, &mut s)),
+        interference_pct: top
+            .map(|top| ardupilot_interference_pct(model.dist_at_input(top, &mut s))),
     })
 }
 
@@ -70,9 +81,28 @@ pub fn compatibility(
     };
     let data = Dataset::from_recording(rec, input, origin)?;
     // The top of the recorded range, in the input's own units.
-    let top = (0..rec.len())
-        .map(|r| data.spec.raw(rec, r))
-        .fold(f64::NEG_INFINITY, f64::max);
+    let raw: Vec<f64> = (0..rec.len()).map(|r| data.spec.raw(rec, r)).collect();
+    let top = raw.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    let bottom = raw.iter().copied().fold(f64::INFINITY, f64::min);
+    let near_top = raw
+        .iter()
+        .filter(|v| **v >= top - TOP_BAND * (top - bottom))
+        .count();
+    let mut withheld = Vec::new();
+    let unit = match input {
+        InputKind::Current => " A",
+        _ => "",
+    };
+    let top = if near_top >= MIN_TOP_ROWS {
+        Some(top)
+    } else {
+        withheld.push(format!(
+            "interference: only {near_top} rows lie within {:.0} % of the top of the recorded range ({top:.2}{unit}); a figure at the top needs at least {MIN_TOP_ROWS}",
+            TOP_BAND * 100.0
+        ));
+        None
+    };
+    let updates = crate::baseline::compassmot_updates(&data, &|_| true);
     let line = |family: Family| -> Result<Figures, IdentError> {
         figures(
             &FitConfig::baseline(family)
@@ -82,10 +112,25 @@ pub fn compatibility(
             top,
         )
     };
+    let ardupilot = if updates >= crate::baseline::COMPASSMOT_CONVERGED_UPDATES {
+        Some(line(Family::ArduPilot)?)
+    } else {
+        withheld.push(format!(
+            "compassmot: ArduPilot's running average would update on only {updates} rows (throttle above 0{}); starting from zero it needs {} updates to hold less than 5 % of its start",
+            if input == InputKind::Current {
+                ", at least 3 A"
+            } else {
+                ""
+            },
+            crate::baseline::COMPASSMOT_CONVERGED_UPDATES
+        ));
+        None
+    };
     Ok(Compatibility {
         model: figures(model, top)?,
         px4: line(Family::Px4)?,
-        ardupilot: line(Family::ArduPilot)?,
+        ardupilot,
+        withheld,
     })
 }
 
@@ -128,13 +173,14 @@ mod tests {
         // |k| at full throttle over 530 mG.
         let want = k.norm() / 53.0 * 100.0;
         assert!(
-            (c.px4.interference_pct - want).abs() < 0.5,
+            (c.px4.interference_pct.unwrap() - want).abs() < 0.5,
             "{c:?} vs {want}"
         );
         assert!(
-            (c.model.interference_pct - want).abs() < 0.5,
+            (c.model.interference_pct.unwrap() - want).abs() < 0.5,
             "{c:?} vs {want}"
         );
+        assert!(c.withheld.is_empty(), "{c:?}");
     }
 
     #[test]
@@ -148,7 +194,9 @@ mod tests {
         let c = compatibility(&model, &rec, "cubic").unwrap();
         for a in 0..3 {
             assert!(
-                c.model.r2[a] > 0.99 && c.px4.r2[a] < 0.9 && c.ardupilot.r2[a] < 0.9,
+                c.model.r2[a] > 0.99
+                    && c.px4.r2[a] < 0.9
+                    && c.ardupilot.as_ref().unwrap().r2[a] < 0.9,
                 "axis {a}: {c:?}"
             );
             assert!(
@@ -156,5 +204,70 @@ mod tests {
                 "{c:?}"
             );
         }
+    }
+
+    /// Regression: on a log ending in a spin-down, the compassmot emulation gave an R² of
+    /// -1384 and 557 % interference: it updated its running average on every row with any
+    /// throttle, where ArduPilot's loop needs 3 A for the current form, and it reported
+    /// figures that rested on a handful of rows. Figures with too few rows behind them are now
+    /// withheld, with the reason.
+    #[test]
+    fn figures_with_too_few_rows_behind_them_are_withheld_with_the_reason() {
+        let k = Vec3::new(6.0, -8.0, 24.0);
+        // A short run: motors off for 2 s, a ramp up for 1.5 s (150 rows at 100 Hz), and a
+        // single spike to full throttle at the end.
+        let mut rec = Recording {
+            thr: vec![vec![]],
+            overall_only: true,
+            ..Default::default()
+        };
+        for i in 0..352 {
+            let u = if i < 200 {
+                0.0
+            } else if i < 351 {
+                0.1 + 0.5 * (i - 200) as f64 / 150.0
+            } else {
+                1.0
+            };
+            rec.t_s.push(i as f64 * 0.01);
+            rec.thr[0].push(u);
+            let ripple = 0.05 * ((i as f64) * 1.7).sin();
+            rec.mag_ut
+                .push(Vec3::new(20.0, 1.0, 45.0) + k * u + Vec3::repeat(ripple));
+        }
+        let model = FitConfig::evenly_spaced(3, Estimation::Global)
+            .check()
+            .unwrap()
+            .fit_recording(&rec, "short")
+            .unwrap();
+        let c = compatibility(&model, &rec, "short").unwrap();
+        assert!(c.ardupilot.is_none(), "{c:?}");
+        assert!(
+            c.model.interference_pct.is_none() && c.px4.interference_pct.is_none(),
+            "{c:?}"
+        );
+        let text = c.withheld.join("; ");
+        assert!(
+            text.contains("only 1 rows lie within 10 %") && text.contains("only 152 rows"),
+            "{text}"
+        );
+    }
+
+    #[test]
+    fn compassmot_in_current_form_updates_only_from_3_amperes() {
+        let mut rec = stair(|u| Vec3::new(6.0, -8.0, 24.0) * u);
+        // 2 A with the motors just on, 20 A at full throttle.
+        rec.bat_a = Some(rec.thr[0].iter().map(|u| 2.0 + 18.0 * u).collect());
+        let data = Dataset::from_recording(&rec, InputKind::Current, "amps").unwrap();
+        let updates = crate::baseline::compassmot_updates(&data, &|_| true);
+        let at_least_3a = rec
+            .bat_a
+            .as_ref()
+            .unwrap()
+            .iter()
+            .filter(|a| **a >= 3.0)
+            .count();
+        assert_eq!(updates, at_least_3a);
+        assert!(updates < rec.len() - 200, "{updates}");
     }
 }
