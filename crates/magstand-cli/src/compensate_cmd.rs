@@ -6,8 +6,8 @@ use clap::Args;
 
 use crate::files;
 use magstand_core::recording_csv;
-use magstand_ident::Model;
 use magstand_ident::metrics::{Evaluation, against_truth};
+use magstand_ident::{Model, flight};
 
 /// Arguments of `magstand compensate`.
 #[derive(Args)]
@@ -71,6 +71,27 @@ fn run_augmented(a: &CompensateArgs, model_text: &str) -> Result<()> {
     Ok(())
 }
 
+/// Warns when rows of `rec` lie beyond the input range the model was identified on: there it
+/// continues linearly from its edge, which is safe but not identified.
+pub(crate) fn warn_beyond_identified(model: &Model, rec: &magstand_core::Recording, origin: &str) {
+    let Some(range) = &model.identified else {
+        return;
+    };
+    let i = &model.input;
+    let beyond = (0..rec.len())
+        .filter(|&r| !range.contains(i.normalize(i.raw(rec, r))))
+        .count();
+    if beyond > 0 {
+        let raw = |u: f64| i.lo + u * (i.hi - i.lo);
+        eprintln!(
+            "warning: {origin}: {beyond} of {} rows lie beyond the input range the model was identified on ({:.3}..{:.3}); there it continues linearly from its edge",
+            rec.len(),
+            raw(range.lo),
+            raw(range.hi)
+        );
+    }
+}
+
 /// Runs `magstand compensate`.
 pub fn run(a: CompensateArgs) -> Result<()> {
     files::refuse_overwriting_inputs(&[&a.model, &a.recording], &[&a.out])?;
@@ -85,6 +106,29 @@ pub fn run(a: CompensateArgs) -> Result<()> {
     let out = model.compensate(&rec, &a.recording.display().to_string())?;
     files::ensure_parent(&a.out)?;
     recording_csv::write(&out, &a.out)?;
+    warn_beyond_identified(&model, &rec, &a.recording.display().to_string());
+    let origin = a.recording.display().to_string();
+    if flight::is_flight(&rec) {
+        // A turning vehicle: the stand's figures (heading at fixed attitude, interference
+        // over levels) mean nothing; judge the field's magnitude and the heading instead.
+        let f = flight::flight_figures(&rec, &out.mag_ut, None, &origin)?;
+        println!(
+            "compensated {} rows of a flight -> {}; field magnitude spread (sd) {:.2} -> {:.2} uT; heading error against the attitude-turned Earth field ({}, |e| {:.1} uT) RMS {:.1} -> {:.1} deg, worst {:.1} -> {:.1} deg",
+            rec.len(),
+            a.out.display(),
+            f.norm_sd_ut.0,
+            f.norm_sd_ut.1,
+            f.earth_source,
+            f.earth_ned_ut.norm(),
+            f.heading_rms_deg.0,
+            f.heading_rms_deg.1,
+            f.heading_max_deg.0,
+            f.heading_max_deg.1
+        );
+        let ev = Evaluation::new(&model, &rec);
+        print_truth(ev.truth_rmse_ut);
+        return Ok(());
+    }
     let ev = Evaluation::new(&model, &rec);
     println!(
         "compensated {} rows -> {}; heading error (worst level) {:.2} deg -> {:.2} deg; interference {:.1} % -> {:.1} %",

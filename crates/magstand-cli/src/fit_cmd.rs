@@ -319,9 +319,10 @@ pub fn run(a: FitArgs) -> Result<()> {
     let origin = a.recording.display().to_string();
     // Printed after the model is written: a reader that closes stdout early must not cost it.
     let mut earth_summary = None;
+    let mut all_rows = None;
     if let Some(earth) = a.earth {
         let (taken_out, summary) = take_out_earth_field(&a, earth, &rec, &origin)?;
-        rec = taken_out;
+        all_rows = Some(std::mem::replace(&mut rec, taken_out));
         earth_summary = Some(summary);
     }
     let model = cfg.fit_recording(&rec, &origin)?;
@@ -334,6 +335,13 @@ pub fn run(a: FitArgs) -> Result<()> {
     }
     print_summary(&model);
     print_compatibility(&model, &rec, &origin)?;
+    // Rows left out of the fit (tilted beyond --max-tilt-deg) are still rows the model will
+    // compensate: say when they go beyond what it was identified on.
+    crate::compensate_cmd::warn_beyond_identified(
+        &model,
+        all_rows.as_ref().unwrap_or(&rec),
+        &origin,
+    );
     println!("wrote {}", a.model_out.display());
     Ok(())
 }

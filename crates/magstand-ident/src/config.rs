@@ -7,7 +7,7 @@ use crate::IdentError;
 use crate::baseline;
 use crate::dataset::{Dataset, InputKind};
 use crate::local_linear::{self, Estimation};
-use crate::model::{FitSummary, Model, Structure};
+use crate::model::{FitSummary, IdentifiedRange, Model, Structure};
 use crate::noise_model::SdModel;
 use crate::structure;
 
@@ -342,7 +342,15 @@ impl Fit for ValidFitConfig {
         let select = |k: usize| blocks[k] % 5 == 3;
         let train = |k: usize| !holdout[k];
         let (s_train, _, _) = self.fit_rows(data, &train, &select, false)?;
-        let train_model = Model::new("", data.spec.clone(), data.reference_ut, s_train, None);
+        let mut train_model = Model::new("", data.spec.clone(), data.reference_ut, s_train, None);
+        // Held-out blocks beyond the training rows' range see the continuation a user's later
+        // rows would.
+        let train_u: Vec<f64> = (0..data.len())
+            .filter(|&k| train(k))
+            .map(|k| data.u[k])
+            .collect();
+        train_model.identified =
+            IdentifiedRange::of(&train_u, data.spec.normalize(data.spec.off_raw));
         let r_train = train_model.residuals(data);
         let (structure, sd, residuals) = self.fit_rows(data, &|_| true, &select, true)?;
         let mut model = Model::new(
@@ -352,7 +360,10 @@ impl Fit for ValidFitConfig {
             structure,
             sd,
         );
+        // Residuals and statistics come from the model as fitted; the identified range (and
+        // with it the continuation beyond) is set afterwards, and changes nothing inside it.
         let r = residuals.unwrap_or_else(|| model.residuals(data));
+        model.identified = IdentifiedRange::of(&data.u, data.spec.normalize(data.spec.off_raw));
         let holdout_rows = holdout.iter().filter(|h| **h).count();
         let rms = |rows: &mut dyn Iterator<Item = Vec3>, n: usize| -> [f64; 3] {
             let s = rows.fold(Vec3::zeros(), |acc, v| acc + v.component_mul(&v));

@@ -377,6 +377,111 @@ pub fn prepare_flight(
     })
 }
 
+/// Figures of a compensation that mean something for a turning vehicle, where the stand's
+/// heading error at fixed attitude and interference percentage do not.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FlightFigures {
+    /// Standard deviation of the field's magnitude over the rows, before and after, µT: a
+    /// calibrated sensor reads the same magnitude at every attitude, so what spreads it is
+    /// disturbance.
+    pub norm_sd_ut: (f64, f64),
+    /// RMS heading error, before and after, degrees: the horizontal direction of the reading
+    /// turned to north-east-down by the logged attitude, against the Earth field's.
+    pub heading_rms_deg: (f64, f64),
+    /// Largest heading error, before and after, degrees.
+    pub heading_max_deg: (f64, f64),
+    /// The Earth field the headings are judged against, north-east-down, µT.
+    pub earth_ned_ut: Vec3,
+    /// Where that field came from ("fitted from the recording" or the caller's).
+    pub earth_source: &'static str,
+}
+
+/// Whether a recording is a flight rather than a restrained stand: `magstand import` marked
+/// flight rows, or the logged attitude varies (tilt beyond 10 degrees, or heading over more than
+/// 45 degrees, where a stand's attitude only trembles).
+pub fn is_flight(rec: &Recording) -> bool {
+    let Some(att) = rec.attitude.as_ref() else {
+        return false;
+    };
+    let marked = rec
+        .extra
+        .iter()
+        .find(|(n, _)| n == "segment")
+        .is_some_and(|(_, v)| v.iter().any(|s| s == "flight"));
+    let tilt = att.iter().map(tilt_deg).fold(0.0, f64::max);
+    let yaws: Vec<f64> = att
+        .iter()
+        .map(|q| q.euler_angles().2.to_degrees())
+        .collect();
+    marked || tilt > 10.0 || yaw_coverage_deg(&yaws) > 45.0
+}
+
+/// Flight figures of `after` (the compensated readings of `rec`) against `rec`'s own, over
+/// the rows tilted at most [`DEFAULT_MAX_TILT_DEG`] (a flip is not flight). The
+/// Earth field is `earth` when given (a reference model), else fitted from `rec` by the stacked
+/// fit of [`prepare_flight`], else the mean of the compensated readings turned to
+/// north-east-down.
+pub fn flight_figures(
+    rec: &Recording,
+    after: &[Vec3],
+    earth: Option<Vec3>,
+    origin: &str,
+) -> Result<FlightFigures, IdentError> {
+    let att = rec.attitude.as_ref().ok_or_else(|| IdentError::Data {
+        origin: origin.to_string(),
+        message: "flight figures need the attitude columns".into(),
+    })?;
+    let to_ned = |r: usize, m: Vec3| att[r] * m;
+    // A flip or a crash is not flight: judged rows are those the flight fit keeps.
+    let rows: Vec<usize> = (0..rec.len())
+        .filter(|&r| tilt_deg(&att[r]) <= DEFAULT_MAX_TILT_DEG)
+        .collect();
+    if rows.is_empty() {
+        return Err(IdentError::Data {
+            origin: origin.to_string(),
+            message: format!("every row is tilted beyond {DEFAULT_MAX_TILT_DEG} deg"),
+        });
+    }
+    let (e, source) = match earth {
+        Some(e) => (e, "given"),
+        None => match prepare_flight(rec, &FlightConfig::default(), origin) {
+            Ok(p) => (p.earth_ned_ut, "fitted from the recording"),
+            Err(_) => (
+                rows.iter().map(|&r| to_ned(r, after[r])).sum::<Vec3>() / rows.len() as f64,
+                "the mean compensated reading",
+            ),
+        },
+    };
+    let norm_sd = |v: &mut dyn Iterator<Item = f64>| {
+        let x: Vec<f64> = v.collect();
+        let mean = x.iter().sum::<f64>() / x.len() as f64;
+        (x.iter().map(|n| (n - mean).powi(2)).sum::<f64>() / x.len() as f64).sqrt()
+    };
+    let north = e.y.atan2(e.x);
+    let heading_err = |r: usize, m: Vec3| {
+        let h = to_ned(r, m);
+        let d = (h.y.atan2(h.x) - north).to_degrees();
+        (d + 180.0).rem_euclid(360.0) - 180.0
+    };
+    let errors = |ms: &dyn Fn(usize) -> Vec3| -> (f64, f64) {
+        let e: Vec<f64> = rows.iter().map(|&r| heading_err(r, ms(r))).collect();
+        let rms = (e.iter().map(|x| x * x).sum::<f64>() / e.len() as f64).sqrt();
+        (rms, e.iter().fold(0.0f64, |m, x| m.max(x.abs())))
+    };
+    let before = errors(&|r| rec.mag_ut[r]);
+    let after_e = errors(&|r| after[r]);
+    Ok(FlightFigures {
+        norm_sd_ut: (
+            norm_sd(&mut rows.iter().map(|&r| rec.mag_ut[r].norm())),
+            norm_sd(&mut rows.iter().map(|&r| after[r].norm())),
+        ),
+        heading_rms_deg: (before.0, after_e.0),
+        heading_max_deg: (before.1, after_e.1),
+        earth_ned_ut: e,
+        earth_source: source,
+    })
+}
+
 /// Angle between the body's down axis and the vertical, degrees.
 fn tilt_deg(q: &magstand_core::Quat) -> f64 {
     (q * Vec3::z()).angle(&Vec3::z()).to_degrees()

@@ -64,4 +64,4 @@ pub use dataset::{
 };
 pub use error::IdentError;
 pub use local_linear::{Estimation, LocalLinearNet};
-pub use model::{FORMAT, FitSummary, Model, Scratch, Structure, VERSION};
+pub use model::{FORMAT, FitSummary, IdentifiedRange, Model, Scratch, Structure, VERSION};

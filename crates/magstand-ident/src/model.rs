@@ -12,9 +12,16 @@
 //!                 "coefficients": [[[a, b], ...], [...], [...]]}     // per axis, per local model
 //!              | {"kind": "polynomial", "coefficients": [[c0, c1, ...], [...], [...]]},
 //!   "sd": {"knots": [...], "sd_ut": [[...], [...], [...]]} | null,   // noise sd per axis
-//!   "summary": {...} | null
+//!   "summary": {...} | null,
+//!   "identified": {"lo": u0, "hi": u1, "quantiles": [q0, q5, ..., q100]}   // optional
 //! }
 //! ```
+//! `identified` is the normalized input range the model was identified on, with the 21
+//! quantiles (every 5 %) of the identification rows' input with the motors running. Beyond
+//! that range a model continues linearly from its edge: a local-linear net keeps the
+//! validity weights of the edge (so its blended local models continue as straight lines), a
+//! polynomial continues along its tangent at the edge. Without it (files written before it
+//! existed) the model is evaluated as fitted everywhere.
 //! The input is normalized, `u = (raw - lo) / (hi - lo)`; local coefficients are in µT per unit of
 //! normalized input (slopes) and µT (intercepts). The predicted disturbance is the model output
 //! minus its output with the motors off, so it is exactly zero with the motors off (eq. 9).
@@ -84,6 +91,46 @@ pub struct Model {
     pub sd: Option<SdModel>,
     /// Fit statistics.
     pub summary: Option<FitSummary>,
+    /// The input range it was identified on; beyond it the model continues linearly.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub identified: Option<IdentifiedRange>,
+}
+
+/// The normalized input range a model was identified on.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct IdentifiedRange {
+    /// Lowest normalized input with the motors running.
+    pub lo: f64,
+    /// Highest normalized input.
+    pub hi: f64,
+    /// Quantiles of the normalized input over the rows with the motors running, every 5 %
+    /// (21 values, `lo` to `hi`): where the identification data lie.
+    pub quantiles: Vec<f64>,
+}
+
+impl IdentifiedRange {
+    /// The range of the identification inputs `u` (normalized, every row), with the
+    /// quantiles of those above `off_u` (the motors running); `None` without finite inputs.
+    pub fn of(u: &[f64], off_u: f64) -> Option<Self> {
+        let mut all: Vec<f64> = u.iter().copied().filter(|x| x.is_finite()).collect();
+        if all.is_empty() {
+            return None;
+        }
+        all.sort_by(f64::total_cmp);
+        let on: Vec<f64> = all.iter().copied().filter(|x| *x > off_u + 1e-9).collect();
+        let v = if on.is_empty() { &all } else { &on };
+        let q = |p: f64| v[((v.len() - 1) as f64 * p).round() as usize];
+        Some(Self {
+            lo: all[0],
+            hi: all[all.len() - 1],
+            quantiles: (0..=20).map(|k| q(k as f64 / 20.0)).collect(),
+        })
+    }
+
+    /// Whether a normalized input lies inside (with a tolerance of 1e-9).
+    pub fn contains(&self, u: f64) -> bool {
+        u >= self.lo - 1e-9 && u <= self.hi + 1e-9
+    }
 }
 
 /// Scratch space for repeated predictions.
@@ -110,6 +157,7 @@ impl Model {
             structure,
             sd,
             summary: None,
+            identified: None,
         }
     }
 
@@ -125,13 +173,31 @@ impl Model {
         }
     }
 
-    /// Raw model output at normalized input `u` and regressors `x`.
+    /// Raw model output at normalized input `u` and regressors `x`; beyond the identified
+    /// range, the linear continuation from its edge (see the module documentation).
     pub fn output(&self, u: f64, x: &[f64], phi: &mut [f64]) -> Vec3 {
+        let edge = match &self.identified {
+            Some(r) if u.is_finite() => u.clamp(r.lo, r.hi),
+            _ => u,
+        };
         match &self.structure {
-            Structure::LocalLinear(net) => net.eval(u, x, phi),
-            Structure::Polynomial { coefficients } => {
-                Vec3::from_fn(|a, _| coefficients[a].iter().rev().fold(0.0, |acc, c| acc * u + c))
-            }
+            // The edge's validity weights with the row's own regressors: the blended local
+            // models continue as the straight lines they are.
+            Structure::LocalLinear(net) => net.eval(edge, x, phi),
+            Structure::Polynomial { coefficients } => Vec3::from_fn(|a, _| {
+                let c = &coefficients[a];
+                let value = c.iter().rev().fold(0.0, |acc, c| acc * edge + c);
+                if edge == u {
+                    return value;
+                }
+                let slope = c
+                    .iter()
+                    .enumerate()
+                    .skip(1)
+                    .rev()
+                    .fold(0.0, |acc, (k, c)| acc * edge + k as f64 * c);
+                value + slope * (u - edge)
+            }),
         }
     }
 
@@ -278,6 +344,23 @@ impl Model {
         }
         if i.motors == 0 {
             return Err("input.motors must be at least 1".into());
+        }
+        if let Some(r) = &self.identified
+            && !(r.lo.is_finite()
+                && r.hi.is_finite()
+                && r.lo <= r.hi
+                && r.quantiles.len() == 21
+                && r.quantiles
+                    .iter()
+                    .all(|q| q.is_finite() && (r.lo..=r.hi).contains(q))
+                && r.quantiles.windows(2).all(|w| w[0] <= w[1]))
+        {
+            return Err(format!(
+                "identified: lo={} hi={} with {} quantiles; expected finite lo <= hi and 21 ascending quantiles between them",
+                r.lo,
+                r.hi,
+                r.quantiles.len()
+            ));
         }
         let p = i.regressor_count();
         match &self.structure {

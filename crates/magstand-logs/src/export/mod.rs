@@ -64,7 +64,10 @@ impl LineInput {
 /// Where the line is fitted and judged.
 #[derive(Clone, Copy)]
 pub enum Span<'a> {
-    /// Evenly spaced inputs from zero to the top of the model's recorded range.
+    /// Where the model was identified: the 21 quantiles of its identification rows' input
+    /// (each standing for 5 % of the rows, so the line is fitted the way the vehicle was run),
+    /// or, for a model file without them, evenly spaced inputs from zero to the top of its
+    /// input range.
     ModelRange,
     /// The rows of a recording (its commands, and `bat_a` for a current line).
     Rows {
@@ -137,6 +140,19 @@ pub(crate) fn range_samples(model: &Model, purpose: &str) -> Result<Samples, Log
     Ok(Samples { x, dist })
 }
 
+/// The model at the quantiles of its identification inputs (raw units).
+fn identified_samples(model: &Model, r: &magstand_ident::IdentifiedRange) -> Samples {
+    let mut s = model.scratch();
+    let i = &model.input;
+    let x: Vec<f64> = r
+        .quantiles
+        .iter()
+        .map(|q| i.lo + q * (i.hi - i.lo))
+        .collect();
+    let dist = x.iter().map(|&v| model.dist_at_input(v, &mut s)).collect();
+    Samples { x, dist }
+}
+
 fn samples(model: &Model, input: LineInput, span: Span) -> Result<Samples, LogsError> {
     match span {
         Span::ModelRange => {
@@ -154,7 +170,10 @@ fn samples(model: &Model, input: LineInput, span: Span) -> Result<Samples, LogsE
                     }
                 )));
             }
-            range_samples(model, "a line")
+            match &model.identified {
+                Some(r) => Ok(identified_samples(model, r)),
+                None => range_samples(model, "a line"),
+            }
         }
         Span::Rows { recording, origin } => {
             model
