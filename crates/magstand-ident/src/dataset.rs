@@ -176,16 +176,21 @@ impl Dataset {
         if kind == InputKind::Motors && rec.overall_only {
             return Err(data_err("per-motor inputs need thr_1..thr_N columns; the recording has only the overall `thr`".into()));
         }
+        // The missing column first: it is the user's choice of input that cannot work.
+        if kind == InputKind::Current && rec.bat_a.is_none() {
+            return Err(data_err(
+                "`--inputs current` needs a `bat_a` column; the recording has none (use --inputs throttle)".into(),
+            ));
+        }
         let off = motors_off_rows(rec);
         let reference_ut = motors_off_reference(rec, &off).ok_or_else(|| data_err("no motors-off rows (every thr = 0) to take the eq. 9 reference from; record a few seconds with the motors off".into()))?;
         let (lo, hi, off_raw) = match kind {
             InputKind::Throttle | InputKind::Motors => (0.0, 1.0, 0.0),
             InputKind::Current => {
-                let a = rec.bat_a.as_ref().ok_or_else(|| {
-                    data_err(
-                        "`--inputs current` needs a `bat_a` column; the recording has none".into(),
-                    )
-                })?;
+                let a = rec
+                    .bat_a
+                    .as_ref()
+                    .ok_or_else(|| data_err("`--inputs current` needs a `bat_a` column".into()))?;
                 let off_a = off.iter().map(|&r| a[r]).sum::<f64>() / off.len() as f64;
                 let max = a.iter().cloned().fold(f64::NEG_INFINITY, f64::max);
                 (0.0, if max > 0.0 { max } else { 1.0 }, off_a)

@@ -28,22 +28,14 @@ pub fn streams(log: &LogContents, opts: &ImportOptions) -> Result<VehicleStreams
     let mut out = VehicleStreams::default();
     magnetometer(log, opts, &mut out)?;
     motors(log, opts, &mut out)?;
+    // A sensor that is not fitted logs 0 throughout; VehicleStreams::drop_unmeasured_supply
+    // leaves it out after both formats are read.
     let (bat, bat_name) = match log.series("BAT", 0) {
         Some(b) => (Some(b), "BAT"),
         None => (log.series("CURR", 0), "CURR"),
     };
     if let Some(b) = bat {
         out.bat_v = si_stream(log, b, bat_name, "Volt", Quantity::Voltage)?;
-        if out
-            .bat_v
-            .as_ref()
-            .is_some_and(|s| s.values.iter().all(|v| *v <= 0.5))
-        {
-            out.notes.push(format!(
-                "{bat_name}.Volt is 0 throughout (no voltage sensor): bat_v is left out"
-            ));
-            out.bat_v = None;
-        }
         out.bat_a = si_stream(log, b, bat_name, "Curr", Quantity::Current)?;
     }
     // ESC telemetry (BLHeli, DroneCAN): one ESC message per instance, current in A, in motor

@@ -224,11 +224,15 @@ pub fn import(
         LogFormat::DataFlash => crate::ardupilot::streams(log, opts),
     };
     // On a damaged file, what is missing may be missing because of the damage: say so.
-    let streams = match (streams, &log.damage) {
+    let mut streams = match (streams, &log.damage) {
         (Ok(s), _) => s,
         (Err(e), Some(d)) => return Err(e.on_damaged_file(d)),
         (Err(e), None) => return Err(e),
     };
+    streams.drop_unmeasured_supply(match log.format {
+        LogFormat::Ulog => "battery_status",
+        LogFormat::DataFlash => "BAT/CURR",
+    });
     let mut report = ImportReport {
         format: log.format.name(),
         damage: log.damage.clone(),

@@ -82,6 +82,33 @@ pub struct VehicleStreams {
     pub notes: Vec<String>,
 }
 
+impl VehicleStreams {
+    /// Leaves out a supply channel that reads zero throughout: a log without a voltage or
+    /// current sensor records 0, and a vehicle whose motors run cannot draw 0 A, so the zeros
+    /// mean "not measured". Fitting a current model on them would be fitting noise against a
+    /// constant; leaving the column out makes `fit --inputs current` say the current is
+    /// missing, and the throttle is the input left.
+    pub fn drop_unmeasured_supply(&mut self, source: &str) {
+        // Below any real sensor's resolution: 0.5 V, 0.01 A.
+        let zero = |s: &Option<Stream<f64>>, floor: f64| {
+            s.as_ref()
+                .is_some_and(|s| !s.values.is_empty() && s.values.iter().all(|v| v.abs() <= floor))
+        };
+        if zero(&self.bat_v, 0.5) {
+            self.notes.push(format!(
+                "{source}: the battery voltage is 0 throughout (not measured): bat_v is left out"
+            ));
+            self.bat_v = None;
+        }
+        if zero(&self.bat_a, 0.01) {
+            self.notes.push(format!(
+                "{source}: the battery current is 0 throughout (not measured): bat_a is left out; fit on the throttle"
+            ));
+            self.bat_a = None;
+        }
+    }
+}
+
 /// Decimal year of a Unix time in seconds (UTC; leap seconds do not matter at this precision).
 pub fn decimal_year(unix_s: f64) -> f64 {
     let days = unix_s / 86_400.0;

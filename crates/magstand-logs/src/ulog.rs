@@ -4,10 +4,15 @@
 //! One guard sits in front of the crate: version 0.6.1 slices message payloads by lengths
 //! read from the payload itself (a parameter's key length, an info key length, the fixed
 //! fields of a logging message) without checking them, and panics on a corrupt message whose
-//! length field points past its end. `framing_guard` walks the message framing first and
+//! length field points past its end. `framing_scan` walks the message framing first and
 //! cuts the file at the first message whose own lengths are inconsistent; the crate then
 //! reads the valid prefix and the cut is reported as damage.
-use std::collections::HashMap;
+//!
+//! The same walk drops data messages whose id no subscription registered (a flipped bit in a
+//! real log's msg_id, as pyulog skips it): the crate stops at them, and everything after one
+//! would be lost for a single bad message. How many were dropped is reported as damage.
+use std::borrow::Cow;
+use std::collections::{HashMap, HashSet};
 use std::path::Path;
 
 use px4_ulog::stream_parser::LogParser;
@@ -93,17 +98,42 @@ fn value(data: &[u8], off: usize, ty: &FlattenedFieldType) -> Option<f64> {
     })
 }
 
-/// The offset of the first message whose internal lengths do not fit its size, and what was
-/// wrong; `None` when every complete message is consistent.
-fn framing_guard(bytes: &[u8]) -> Option<(usize, String)> {
+/// The payload of a ULog synchronisation message ('S'), which PX4 writes about once a second
+/// so that a reader can find its way back into a damaged file.
+const SYNC_MAGIC: [u8; 8] = [0x2F, 0x73, 0x13, 0x20, 0x25, 0x0C, 0xBB, 0x12];
+
+/// What the framing walk found.
+#[derive(Default)]
+struct Framing {
+    /// The offset of the first unreadable message with no synchronisation message after it
+    /// (the file is cut there), and what was wrong.
+    cut: Option<(usize, String)>,
+    /// Byte ranges to leave out: data messages with an unregistered id, and unreadable
+    /// stretches up to the next synchronisation message.
+    skipped: Vec<std::ops::Range<usize>>,
+    /// Of `skipped`: how many are single data messages with an unregistered id.
+    unregistered: usize,
+    /// The first problem found, for the report.
+    first: Option<String>,
+}
+
+/// Walks the message framing. A data message whose msg_id no add-subscription registered is
+/// left out on its own (its size is intact, only the id is bad); a message that cannot be
+/// read (an unknown type, or lengths that do not fit its size) starts a stretch that is left
+/// out up to the next synchronisation message, as pyulog does; with no synchronisation message
+/// after it, the file is cut there.
+fn framing_scan(bytes: &[u8]) -> Framing {
+    let mut out = Framing::default();
+    let mut registered: HashSet<u16> = HashSet::new();
     let mut i = 16;
     while i + 3 <= bytes.len() {
         let size = u16::from_le_bytes([bytes[i], bytes[i + 1]]) as usize;
         let kind = bytes[i + 2];
         let Some(payload) = bytes.get(i + 3..i + 3 + size) else {
-            return None; // a truncated last message: the parser reports it
+            return out; // a truncated last message: the parser reports it
         };
         let key = |at: usize| payload.get(at).map(|k| at + 1 + *k as usize);
+        let id = |at: usize| u16::from_le_bytes([payload[at], payload[at + 1]]);
         let ok = match kind {
             b'B' => size >= 40,
             b'A' => size >= 3,
@@ -113,20 +143,74 @@ fn framing_guard(bytes: &[u8]) -> Option<(usize, String)> {
             b'C' => size >= 11,
             b'I' | b'P' => key(0).is_some_and(|end| end <= size),
             b'M' | b'Q' => size >= 2 && key(1).is_some_and(|end| end <= size),
-            _ => true,
+            b'F' => true,
+            _ => false,
         };
         if !ok {
-            return Some((
-                i,
+            let what = if kind.is_ascii_graphic() && b"BADROSLCIPMQF".contains(&kind) {
                 format!(
                     "a malformed '{}' message at byte {i} (its lengths do not fit its {size} bytes)",
                     kind as char
-                ),
-            ));
+                )
+            } else {
+                format!("an unreadable message (type byte {kind:#04x}) at byte {i}")
+            };
+            let resume = bytes[i + 3..]
+                .windows(SYNC_MAGIC.len())
+                .position(|w| w == SYNC_MAGIC)
+                .map(|p| i + 3 + p - 3)
+                .filter(|&s| bytes[s..s + 3] == [8, 0, b'S']);
+            match resume {
+                // Before the data section there is nothing to resynchronise to.
+                Some(s) if !registered.is_empty() => {
+                    out.first.get_or_insert(what);
+                    out.skipped.push(i..s);
+                    i = s;
+                    continue;
+                }
+                _ => {
+                    out.cut = Some((i, what));
+                    return out;
+                }
+            }
+        }
+        match kind {
+            b'A' => {
+                registered.insert(id(1));
+            }
+            b'R' => {
+                registered.remove(&id(0));
+            }
+            b'D' if !registered.contains(&id(0)) => {
+                out.first.get_or_insert_with(|| {
+                    format!(
+                        "a data message with msg_id {} that no subscription registered at byte {i}",
+                        id(0)
+                    )
+                });
+                out.unregistered += 1;
+                out.skipped.push(i..i + 3 + size);
+            }
+            _ => {}
         }
         i += 3 + size;
     }
-    None
+    out
+}
+
+/// `bytes` without the given ranges (sorted, disjoint), borrowed when there are none.
+fn without<'a>(bytes: &'a [u8], ranges: &[std::ops::Range<usize>]) -> Cow<'a, [u8]> {
+    if ranges.is_empty() {
+        return Cow::Borrowed(bytes);
+    }
+    let mut kept = Vec::with_capacity(bytes.len());
+    let mut from = 0;
+    for r in ranges {
+        kept.extend_from_slice(&bytes[from..r.start]);
+        from = r.end;
+    }
+    kept.extend_from_slice(&bytes[from..]);
+    Cow::Owned(kept)
 }
 
 /// Reads ULog bytes; `path` names them in messages.
@@ -146,8 +230,22 @@ pub fn read_bytes(bytes: &[u8], path: &Path) -> Result<LogContents, LogsError> {
             "the file does not start with the ULog magic bytes".into(),
         ));
     }
-    let guard = framing_guard(bytes);
+    let Framing {
+        cut: guard,
+        skipped,
+        unregistered,
+        first,
+    } = framing_scan(bytes);
     let bytes = &bytes[..guard.as_ref().map_or(bytes.len(), |(cut, _)| *cut)];
+    let skipped_bytes: usize = skipped.iter().map(|r| r.len()).sum();
+    let skipped_what = first.map(|first| {
+        format!(
+            "{} stretch(es) of {skipped_bytes} bytes skipped ({unregistered} data message(s) with an unregistered msg_id, the rest unreadable up to the next sync message; the first: {first})",
+            skipped.len()
+        )
+    });
+    let bytes = without(bytes, &skipped);
+    let bytes: &[u8] = &bytes;
     let mut decoders: HashMap<u16, Option<Decoder>> = HashMap::new();
     let topics = &mut out.topics;
     let mut messages = 0usize;
@@ -229,6 +327,12 @@ pub fn read_bytes(bytes: &[u8], path: &Path) -> Result<LogContents, LogsError> {
         )),
         Ok(()) => None,
     };
+    if let Some(what) = skipped_what {
+        out.damage = Some(match out.damage.take() {
+            Some(d) => format!("{what}; {d}"),
+            None => format!("{what}; the rest is kept"),
+        });
+    }
     Ok(out)
 }
 
