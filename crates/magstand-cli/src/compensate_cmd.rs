@@ -71,15 +71,20 @@ fn run_augmented(a: &CompensateArgs, model_text: &str) -> Result<()> {
     Ok(())
 }
 
+/// How far beyond its identified range, as a fraction of the range, an input must lie to be
+/// warned about: a flight fit identifies on delayed (interpolated) inputs, whose peaks are a
+/// little lower than the recording's own.
+const BEYOND_MARGIN: f64 = 0.05;
+
 /// Warns when rows of `rec` lie beyond the input range the model was identified on: there it
 /// continues linearly from its edge, which is safe but not identified.
-pub(crate) fn warn_beyond_identified(model: &Model, rec: &magstand_core::Recording, origin: &str) {
+fn warn_beyond_identified(model: &Model, rec: &magstand_core::Recording, origin: &str) {
     let Some(range) = &model.identified else {
         return;
     };
     let i = &model.input;
     let beyond = (0..rec.len())
-        .filter(|&r| !range.contains(i.normalize(i.raw(rec, r))))
+        .filter(|&r| !range.contains_within(i.normalize(i.raw(rec, r)), BEYOND_MARGIN))
         .count();
     if beyond > 0 {
         let raw = |u: f64| i.lo + u * (i.hi - i.lo);

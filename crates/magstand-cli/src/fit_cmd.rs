@@ -133,7 +133,11 @@ fn take_out_earth_field(
     earth: EarthArg,
     rec: &magstand_core::Recording,
     origin: &str,
-) -> Result<(magstand_core::Recording, String)> {
+) -> Result<(
+    magstand_core::Recording,
+    String,
+    Option<magstand_core::Vec3>,
+)> {
     use magstand_ident::flight::{EarthField, FlightConfig, FlightInput, prepare_flight};
     let mut model_name = "fitted";
     let field = match earth {
@@ -180,7 +184,7 @@ fn take_out_earth_field(
     for w in &p.warnings {
         eprintln!("warning: {w}");
     }
-    Ok((p.recording, summary))
+    Ok((p.recording, summary, p.reference_ut))
 }
 
 /// The fit settings the arguments describe.
@@ -319,13 +323,14 @@ pub fn run(a: FitArgs) -> Result<()> {
     let origin = a.recording.display().to_string();
     // Printed after the model is written: a reader that closes stdout early must not cost it.
     let mut earth_summary = None;
-    let mut all_rows = None;
+    let mut flight_reference = None;
     if let Some(earth) = a.earth {
-        let (taken_out, summary) = take_out_earth_field(&a, earth, &rec, &origin)?;
-        all_rows = Some(std::mem::replace(&mut rec, taken_out));
+        let (taken_out, summary, reference) = take_out_earth_field(&a, earth, &rec, &origin)?;
+        flight_reference = reference;
+        rec = taken_out;
         earth_summary = Some(summary);
     }
-    let model = cfg.fit_recording(&rec, &origin)?;
+    let model = cfg.fit_recording_or(&rec, &origin, flight_reference)?;
     files::ensure_parent(&a.model_out)?;
     model
         .save(&a.model_out)
@@ -335,13 +340,6 @@ pub fn run(a: FitArgs) -> Result<()> {
     }
     print_summary(&model);
     print_compatibility(&model, &rec, &origin)?;
-    // Rows left out of the fit (tilted beyond --max-tilt-deg) are still rows the model will
-    // compensate: say when they go beyond what it was identified on.
-    crate::compensate_cmd::warn_beyond_identified(
-        &model,
-        all_rows.as_ref().unwrap_or(&rec),
-        &origin,
-    );
     println!("wrote {}", a.model_out.display());
     Ok(())
 }

@@ -79,7 +79,9 @@ pub fn compatibility(
         InputKind::Current => InputKind::Current,
         InputKind::Throttle | InputKind::Motors => InputKind::Throttle,
     };
-    let data = Dataset::from_recording(rec, input, origin)?;
+    // Without motors-off rows (a flight), the model's own reference stands in.
+    let data =
+        Dataset::from_recording_or(rec, input, origin, Some(Vec3::from(model.reference_ut)))?;
     // The top of the recorded range, in the input's own units.
     let raw: Vec<f64> = (0..rec.len()).map(|r| data.spec.raw(rec, r)).collect();
     let top = raw.iter().copied().fold(f64::NEG_INFINITY, f64::max);

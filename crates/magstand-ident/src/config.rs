@@ -224,6 +224,22 @@ impl ValidFitConfig {
         self.fit(&Dataset::from_recording(rec, self.0.input, origin)?)
     }
 
+    /// As [`ValidFitConfig::fit_recording`], with the eq. 9 reference to use when the
+    /// recording has no motors-off rows ([`Dataset::from_recording_or`]).
+    pub fn fit_recording_or(
+        &self,
+        rec: &Recording,
+        origin: &str,
+        fallback_reference_ut: Option<Vec3>,
+    ) -> Result<Model, IdentError> {
+        self.fit(&Dataset::from_recording_or(
+            rec,
+            self.0.input,
+            origin,
+            fallback_reference_ut,
+        )?)
+    }
+
     fn method_name(&self) -> String {
         let w = if self.0.weighted { "+weighted" } else { "" };
         match &self.0.family {

@@ -156,11 +156,24 @@ pub fn motors_off_reference(rec: &Recording, off_rows: &[usize]) -> Option<Vec3>
 pub const MIN_ROWS: usize = 20;
 
 impl Dataset {
-    /// Builds identification data from a recording.
+    /// Builds identification data from a recording; the eq. 9 reference is the mean reading
+    /// over its motors-off rows.
     pub fn from_recording(
         rec: &Recording,
         kind: InputKind,
         origin: &str,
+    ) -> Result<Self, IdentError> {
+        Self::from_recording_or(rec, kind, origin, None)
+    }
+
+    /// As [`Dataset::from_recording`], with a reference to use when the recording has no
+    /// motors-off rows (a flight's, from [`crate::flight::FlightPrep::reference_ut`]); the
+    /// motors-off reading at input zero is then taken as 0 A for a current input.
+    pub fn from_recording_or(
+        rec: &Recording,
+        kind: InputKind,
+        origin: &str,
+        fallback_reference_ut: Option<Vec3>,
     ) -> Result<Self, IdentError> {
         let data_err = |message: String| IdentError::Data {
             origin: origin.into(),
@@ -183,7 +196,7 @@ impl Dataset {
             ));
         }
         let off = motors_off_rows(rec);
-        let reference_ut = motors_off_reference(rec, &off).ok_or_else(|| data_err("no motors-off rows (every thr = 0) to take the eq. 9 reference from; record a few seconds with the motors off".into()))?;
+        let reference_ut = motors_off_reference(rec, &off).or(fallback_reference_ut).ok_or_else(|| data_err("no motors-off rows (every thr = 0) to take the eq. 9 reference from; record a few seconds with the motors off (with --earth, a flight whose input comes down near zero will do)".into()))?;
         let (lo, hi, off_raw) = match kind {
             InputKind::Throttle | InputKind::Motors => (0.0, 1.0, 0.0),
             InputKind::Current => {
@@ -191,7 +204,11 @@ impl Dataset {
                     .bat_a
                     .as_ref()
                     .ok_or_else(|| data_err("`--inputs current` needs a `bat_a` column".into()))?;
-                let off_a = off.iter().map(|&r| a[r]).sum::<f64>() / off.len() as f64;
+                let off_a = if off.is_empty() {
+                    0.0
+                } else {
+                    off.iter().map(|&r| a[r]).sum::<f64>() / off.len() as f64
+                };
                 let max = a.iter().cloned().fold(f64::NEG_INFINITY, f64::max);
                 (0.0, if max > 0.0 { max } else { 1.0 }, off_a)
             }

@@ -80,6 +80,14 @@ pub struct FlightPrep {
     pub delay_s: f64,
     /// RMS residual of the stacked fit at that delay, µT.
     pub residual_rms_ut: f64,
+    /// The eq. 9 reference the stacked fit implies: the stand-equivalent reading at input
+    /// zero (sensor offset plus the Earth field at level, facing north). A log that never has
+    /// every motor off (a flight logged from take-off) has no motors-off rows to average, and
+    /// the fit uses this instead ([`crate::Dataset::from_recording_or`]). `None` when the
+    /// input never comes near zero (its lowest value above a tenth of its highest): the
+    /// reading at zero would then be an extrapolation of the cubic, and the eq. 9 reference
+    /// is not to be guessed.
+    pub reference_ut: Option<Vec3>,
     /// Largest tilt from level in the data, degrees, and the yaw range covered, degrees.
     pub attitude_span_deg: (f64, f64),
     /// What makes the result doubtful, in words (empty when nothing does).
@@ -99,8 +107,7 @@ fn delayed(t: &[f64], u: &[f64], delay_s: f64) -> Vec<f64> {
 /// not vary, the solver names one of its columns as the dependent one.
 const PER_AXIS: usize = 4;
 
-/// Fits the stacked model at one delay; returns (Earth field, residual RMS, the variances of
-/// the fitted Earth field's components when it is fitted).
+/// Fits the stacked model at one delay.
 /// `to_body[r]` is the rotation from north-east-down to the body frame at row `r` (R^T),
 /// computed once for every delay tried.
 fn stacked(
@@ -109,7 +116,7 @@ fn stacked(
     u: &[f64],
     earth: EarthField,
     origin: &str,
-) -> Result<(Vec3, f64, Option<Vec3>), IdentError> {
+) -> Result<Stacked, IdentError> {
     let scale = u.iter().fold(0.0f64, |m, v| m.max(v.abs())).max(1e-12);
     let ne = if earth == EarthField::Fit { 3 } else { 0 };
     let p = ne + 3 * PER_AXIS;
@@ -195,7 +202,25 @@ fn stacked(
         }
         EarthField::Known(e) => (e, None),
     };
-    Ok((e, (sse / (3 * rec.len()) as f64).sqrt(), var))
+    Ok(Stacked {
+        earth_ned_ut: e,
+        rms_ut: (sse / (3 * rec.len()) as f64).sqrt(),
+        earth_var: var,
+        offset_ut: Vec3::from_fn(|a, _| coef[(a * PER_AXIS, 0)]),
+    })
+}
+
+/// What one stacked fit found.
+#[derive(Clone, Copy)]
+struct Stacked {
+    /// The Earth field, north-east-down, µT.
+    earth_ned_ut: Vec3,
+    /// RMS residual, µT.
+    rms_ut: f64,
+    /// Variances of the fitted Earth field's components, when it was fitted.
+    earth_var: Option<Vec3>,
+    /// Per body axis, the sensor offset: the reading at input zero without the Earth field.
+    offset_ut: Vec3,
 }
 
 /// Takes the Earth field out of a flight recording and estimates the stream delay.
@@ -279,7 +304,7 @@ pub fn prepare_flight(
         .iter()
         .map(|q| q.to_rotation_matrix().matrix().transpose())
         .collect();
-    let rss_at = |d: f64| -> Result<(Vec3, f64, Option<Vec3>), IdentError> {
+    let rss_at = |d: f64| -> Result<Stacked, IdentError> {
         stacked(rec, &to_body, &delayed(&rec.t_s, &u, d), cfg.earth, origin)
     };
     // Grid over the delay, then golden section around the best grid point.
@@ -289,7 +314,7 @@ pub fn prepare_flight(
     for k in 1..=steps {
         let d = cfg.max_delay_s * k as f64 / steps as f64;
         let r = rss_at(d)?;
-        if r.1 < best.1.1 {
+        if r.rms_ut < best.1.rms_ut {
             best = (d, r);
         }
     }
@@ -301,7 +326,7 @@ pub fn prepare_flight(
             break;
         }
         let (a, b) = (hi - g * (hi - lo), lo + g * (hi - lo));
-        if rss_at(a)?.1 < rss_at(b)?.1 {
+        if rss_at(a)?.rms_ut < rss_at(b)?.rms_ut {
             hi = b;
         } else {
             lo = a;
@@ -309,10 +334,18 @@ pub fn prepare_flight(
     }
     let mid = 0.5 * (lo + hi);
     let r = rss_at(mid)?;
-    if r.1 < best.1.1 {
+    if r.rms_ut < best.1.rms_ut {
         best = (mid, r);
     }
-    let (delay_s, (earth, rms, earth_var)) = best;
+    let (
+        delay_s,
+        Stacked {
+            earth_ned_ut: earth,
+            rms_ut: rms,
+            earth_var,
+            offset_ut,
+        },
+    ) = best;
 
     let mut out = rec.clone();
     for m in out.thr.iter_mut() {
@@ -372,6 +405,12 @@ pub fn prepare_flight(
         earth_ned_ut: earth,
         delay_s,
         residual_rms_ut: rms,
+        reference_ut: {
+            let (lo, hi) = u
+                .iter()
+                .fold((f64::INFINITY, 0.0f64), |(a, b), &v| (a.min(v), b.max(v)));
+            (lo <= 0.1 * hi).then_some(offset_ut + earth)
+        },
         attitude_span_deg: (tilt, yaw_span),
         warnings,
     })

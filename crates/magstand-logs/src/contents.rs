@@ -102,6 +102,9 @@ pub struct LogContents {
     /// ArduPilot `MSG` texts (firmware version, "Frame: QUAD", ...): (time s, text), in log
     /// order.
     pub texts: Vec<(f64, String)>,
+    /// ULog information messages (`sys_name`, `ver_hw`, `ver_sw_release`, ...): text values as
+    /// text, integers in decimal.
+    pub info: BTreeMap<String, String>,
     /// `None` when the file ended cleanly; otherwise how it broke off. What came before is kept.
     pub damage: Option<String>,
     /// DataFlash field layouts and declared units by message name (empty for ULog, whose
@@ -119,6 +122,7 @@ impl LogContents {
             topics: BTreeMap::new(),
             events: Vec::new(),
             texts: Vec::new(),
+            info: BTreeMap::new(),
             damage: None,
             field_units: FieldUnits::new(),
         }
@@ -154,15 +158,71 @@ impl LogContents {
             .map(str::trim)
     }
 
+    /// The firmware that wrote the log, as it names itself: ArduPilot's first `MSG` of the
+    /// form "ArduCopter V4.6.2 (1ebd4d99)" (or "APM:Copter V3.3-dev"), PX4's `sys_name` and
+    /// `ver_sw_release` ("PX4 v1.14.0") with the board (`ver_hw`).
+    pub fn firmware(&self) -> Option<String> {
+        match self.format {
+            LogFormat::DataFlash => self
+                .texts
+                .iter()
+                .map(|(_, t)| t.trim())
+                .find(|t| (t.starts_with("Ardu") || t.starts_with("APM:")) && t.contains(" V"))
+                .map(str::to_string),
+            LogFormat::Ulog => {
+                let name = self.info.get("sys_name").map_or("PX4", String::as_str);
+                let version = self
+                    .info
+                    .get("ver_sw_release")
+                    .and_then(|v| v.parse::<u32>().ok())
+                    .filter(|&v| v != 0)
+                    .map(px4_release)
+                    .or_else(|| {
+                        let git = self.info.get("ver_sw")?;
+                        Some(format!("git {}", git.get(..8).unwrap_or(git)))
+                    })?;
+                let board = self
+                    .info
+                    .get("ver_hw")
+                    .map(|h| format!(" ({h})"))
+                    .unwrap_or_default();
+                Some(format!("{name} {version}{board}"))
+            }
+        }
+    }
+
     /// A parameter's value.
     pub fn param(&self, name: &str) -> Option<f64> {
         self.params.get(name).copied()
     }
 }
 
+/// PX4's `ver_sw_release` (0xAABBCCTT: major, minor, patch, type) as "v1.14.0", with the
+/// type when it is not a release (0xFF): PX4's firmware types are dev (0), alpha (64),
+/// beta (128) and release candidate (192).
+fn px4_release(v: u32) -> String {
+    let [major, minor, patch, kind] = v.to_be_bytes();
+    let suffix = match kind {
+        255 => String::new(),
+        192..=254 => "-rc".into(),
+        128..=191 => "-beta".into(),
+        64..=127 => "-alpha".into(),
+        _ => "-dev".into(),
+    };
+    format!("v{major}.{minor}.{patch}{suffix}")
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn px4_release_numbers_read_as_px4_prints_them() {
+        // From the logs of tests/data/real-logs: a v1.14.0 release and a v1.17.0 candidate.
+        assert_eq!(px4_release(0x010E_00FF), "v1.14.0");
+        assert_eq!(px4_release(0x0111_00C0), "v1.17.0-rc");
+        assert_eq!(px4_release(0x0109_0000), "v1.9.0-dev");
+    }
 
     #[test]
     fn fields_appearing_late_are_padded_with_nan() {

@@ -82,6 +82,8 @@ pub struct Segment {
 pub struct ImportReport {
     /// "ULog" or "DataFlash".
     pub format: &'static str,
+    /// The firmware that wrote the log, when it names itself ([`LogContents::firmware`]).
+    pub firmware: Option<String>,
     /// How the file broke off, if it did.
     pub damage: Option<String>,
     /// Choices made by the format mapping (instances, PWM ranges).
@@ -119,6 +121,9 @@ impl ImportReport {
                 0.0
             }
         );
+        if let Some(f) = &self.firmware {
+            let _ = writeln!(s, "  firmware: {f}");
+        }
         if let Some(d) = &self.damage {
             let _ = writeln!(s, "DAMAGED FILE: {d}");
         }
@@ -235,6 +240,7 @@ pub fn import(
     });
     let mut report = ImportReport {
         format: log.format.name(),
+        firmware: log.firmware(),
         damage: log.damage.clone(),
         notes: streams.notes.clone(),
         gaps_s: Vec::new(),

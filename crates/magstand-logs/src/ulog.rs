@@ -287,7 +287,30 @@ pub fn read_bytes(bytes: &[u8], path: &Path) -> Result<LogContents, LogsError> {
             params.insert(n.to_string(), *v as f64);
         }
     };
+    let info = &mut out.info;
+    let mut on_info = |m: &px4_ulog::stream_parser::model::InfoMessage| {
+        let value = match m.type_str {
+            "uint32_t" => m
+                .value
+                .get(..4)
+                .map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]).to_string()),
+            "int32_t" => m
+                .value
+                .get(..4)
+                .map(|b| i32::from_le_bytes([b[0], b[1], b[2], b[3]]).to_string()),
+            t if t.starts_with("char") => Some(
+                String::from_utf8_lossy(m.value)
+                    .trim_end_matches('\0')
+                    .to_string(),
+            ),
+            _ => None,
+        };
+        if let Some(v) = value {
+            info.insert(m.key.to_string(), v);
+        }
+    };
     let mut parser = LogParser::default();
+    parser.set_info_message_callback(&mut on_info);
     parser.set_data_message_callback(&mut on_data);
     parser.set_parameter_message_callback(&mut on_param);
     let result = parser.consume_bytes(bytes);
