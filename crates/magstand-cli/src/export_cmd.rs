@@ -108,7 +108,13 @@ pub fn run(a: ExportArgs) -> Result<()> {
         Target::Px4 => {
             let line = linear_approximation(&model, input, span)?;
             eprint!("{}", describe(&line));
-            px4_params(&line, a.instance.unwrap_or(0))
+            {
+                let i = a.instance.unwrap_or(0);
+                if i > 3 {
+                    bail!("--instance {i}: PX4 magnetometers are numbered CAL_MAG0 to CAL_MAG3");
+                }
+                px4_params(&line, i)
+            }
         }
         Target::Ardupilot => {
             let line = linear_approximation(&model, input, span)?;

@@ -267,9 +267,22 @@ pub fn print_summary(model: &Model) {
                 .as_ref()
                 .map(|m| (m.sd(0.0)[a], m.sd(1.0)[a]))
                 .unwrap_or((f64::NAN, f64::NAN));
+            // "-" where there is no figure: no rows held out, no noise model.
+            let figure = |v: f64, shown: bool| {
+                if shown && v.is_finite() {
+                    format!("{v:.3}")
+                } else {
+                    "-".into()
+                }
+            };
             println!(
-                "{:>4} {:>9.3} {:>7.4} {:>16.3} {:>13.3} {:>13.3}",
-                AXES[a], s.rmse_ut[a], s.r2[a], s.holdout_rmse_ut[a], sd0, sd1
+                "{:>4} {:>9.3} {:>7.4} {:>16} {:>13} {:>13}",
+                AXES[a],
+                s.rmse_ut[a],
+                s.r2[a],
+                figure(s.holdout_rmse_ut[a], s.holdout_rows > 0),
+                figure(sd0, true),
+                figure(sd1, true)
             );
         }
     }

@@ -76,7 +76,8 @@ pub fn run(a: ImportArgs) -> Result<()> {
         bail!("--from-s {f} --to-s {t}: the window is empty");
     }
     // Read once: the format check and the import share the bytes.
-    let bytes = std::fs::read(path).with_context(|| format!("{}: cannot read", path.display()))?;
+    let bytes = magstand_core::input_file::read(path, magstand_core::input_file::MAX_LOG_BYTES)
+        .with_context(|| format!("{}: cannot read", path.display()))?;
     if let Some(found) = LogFormat::detect(&bytes)
         && (found == LogFormat::Ulog) != expect_ulog
     {

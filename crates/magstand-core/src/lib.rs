@@ -24,6 +24,7 @@
 
 pub mod atomic_file;
 mod error;
+pub mod input_file;
 pub mod interpolation;
 pub mod rbf;
 mod recording;

@@ -14,7 +14,10 @@
 //! | `att_qw`, `att_qx`, `att_qy`, `att_qz` | unit quaternion, body to north-east-down (all four or none) | no |
 //! | `true_field_{x,y,z}_ut`, `true_dist_{x,y,z}_ut`, `true_sd_{x,y,z}_ut` | µT (simulations; all nine or none) | no |
 //!
-//! Any other column is carried through verbatim. Numbers are written with fixed precision so
+//! Every number must be finite and within its column's limit ([`magnitude_limit`]: 1e9 s for
+//! `t_s`, 1e5 µT for fields, 1e4 V, 1e5 A, far beyond any real sensor), on reading and on
+//! writing; motor commands are numbered from 1 without gaps. Any other column is carried
+//! through verbatim. Numbers are written with fixed precision so
 //! that the same recording always gives the same bytes.
 use std::collections::HashMap;
 use std::io::{Read, Write};
@@ -27,8 +30,12 @@ use crate::{AXES, CoreError, Quat, Vec3};
 /// Reads a recording from a CSV file.
 pub fn read(path: impl AsRef<Path>) -> Result<Recording, CoreError> {
     let path = path.as_ref();
-    let file = std::fs::File::open(path).map_err(|e| CoreError::io(path, e))?;
-    read_from(std::io::BufReader::new(file), path)
+    let file = crate::input_file::open(path, crate::input_file::MAX_RECORDING_BYTES)
+        .map_err(|e| CoreError::io(path, e))?;
+    read_from(
+        std::io::BufReader::new(file).take(crate::input_file::MAX_RECORDING_BYTES),
+        path,
+    )
 }
 
 /// Reads a recording from CSV text; `origin` names it in error messages.
@@ -73,16 +80,48 @@ impl Header<'_> {
     }
 }
 
+/// The largest magnitude a cell of `column` may have. Far beyond any real sensor (a
+/// magnetometer saturates below 0.01 T), these bounds keep arithmetic on the values finite:
+/// squares and sums of 1e308 overflow.
+pub fn magnitude_limit(column: &str) -> f64 {
+    match column {
+        "t_s" => 1e9,                                                // 31 years
+        c if c.starts_with("mag_") || c.starts_with("true_") => 1e5, // 0.1 T in µT
+        "bat_v" => 1e4,
+        "bat_a" => 1e5,
+        "temp_c" => 1e4,
+        c if c.starts_with("acc_") => 1e5,
+        c if c.starts_with("gyr_") => 1e4,
+        _ => 1e9,
+    }
+}
+
+/// A cell as an error message shows it: cut to 40 characters.
+pub fn shown(cell: &str) -> String {
+    let mut it = cell.chars();
+    let head: String = it.by_ref().take(40).collect();
+    if it.next().is_some() {
+        format!("{head}... ({} bytes)", cell.len())
+    } else {
+        head
+    }
+}
+
 fn parse_cell(path: &Path, row: usize, column: &str, cell: &str) -> Result<f64, CoreError> {
+    let limit = magnitude_limit(column);
     let bad = || CoreError::BadCell {
         path: path.to_path_buf(),
         row,
         column: column.to_string(),
-        found: cell.to_string(),
-        expected: "a finite number".to_string(),
+        found: shown(cell),
+        expected: format!("a finite number of magnitude at most {limit:e}"),
     };
     let v: f64 = cell.trim().parse().map_err(|_| bad())?;
-    if v.is_finite() { Ok(v) } else { Err(bad()) }
+    if v.is_finite() && v.abs() <= limit {
+        Ok(v)
+    } else {
+        Err(bad())
+    }
 }
 
 fn read_from(reader: impl Read, path: &Path) -> Result<Recording, CoreError> {
@@ -100,6 +139,15 @@ fn read_from(reader: impl Read, path: &Path) -> Result<Recording, CoreError> {
         .iter()
         .map(|s| s.trim().to_string())
         .collect();
+    if names.iter().all(|n| n.is_empty()) {
+        return Err(CoreError::Csv {
+            path: path.to_path_buf(),
+            row: 0,
+            message:
+                "the file is empty; expected a header line (t_s, thr_1.., mag_x_ut, ...) and rows"
+                    .into(),
+        });
+    }
     let mut index = HashMap::new();
     for (i, n) in names.iter().enumerate() {
         if index.insert(n.clone(), i).is_some() {
@@ -127,6 +175,21 @@ fn read_from(reader: impl Read, path: &Path) -> Result<Recording, CoreError> {
             "motor commands thr_1..thr_N or the overall throttle thr, 0..1",
         )?]
     };
+    // Motor commands are numbered from 1 without gaps: thr_1, thr_3 would otherwise read as
+    // one motor and the rest as extra columns.
+    if let Some(stray) = names.iter().find(|n| {
+        n.strip_prefix("thr_")
+            .and_then(|k| k.parse::<usize>().ok())
+            .is_some_and(|k| k == 0 || k > thr_cols.len())
+    }) {
+        return Err(CoreError::MissingColumn {
+            path: path.to_path_buf(),
+            column: format!("thr_{}", thr_cols.len() + 1),
+            expected: format!(
+                "motor commands are numbered thr_1..thr_N without gaps, and `{stray}` is there"
+            ),
+        });
+    }
     let overall_only = !h.index.contains_key("thr_1");
     let mag_cols = h
         .triple("mag_", "_ut")?
@@ -232,7 +295,7 @@ fn read_from(reader: impl Read, path: &Path) -> Result<Recording, CoreError> {
                     path: path.to_path_buf(),
                     row,
                     column: thr_names[k].clone(),
-                    found: record[c].to_string(),
+                    found: shown(&record[c]),
                     expected: "a motor command in 0..1".into(),
                 });
             }
@@ -337,30 +400,49 @@ pub fn write_to(rec: &Recording, out: impl Write, origin: &Path) -> Result<(), C
         row: 0,
         message: e.to_string(),
     };
-    w.write_record(header(rec)).map_err(io)?;
+    let names = header(rec);
+    // What is written must read back: every number finite and within its column's limit.
+    let limits: Vec<f64> = names.iter().map(|n| magnitude_limit(n)).collect();
+    w.write_record(&names).map_err(io)?;
+    let mut values: Vec<(f64, usize)> = Vec::new();
     let mut cells: Vec<String> = Vec::new();
     for r in 0..rec.len() {
-        cells.clear();
-        cells.push(format!("{:.6}", rec.t_s[r]));
-        cells.extend(rec.thr.iter().map(|m| format!("{:.6}", m[r])));
-        push3(&mut cells, &rec.mag_ut[r], 4);
+        values.clear();
+        values.push((rec.t_s[r], 6));
+        values.extend(rec.thr.iter().map(|m| (m[r], 6)));
+        push3(&mut values, &rec.mag_ut[r], 4);
         for c in [&rec.bat_v, &rec.bat_a, &rec.temp_c].into_iter().flatten() {
-            cells.push(format!("{:.4}", c[r]));
+            values.push((c[r], 4));
         }
         if let Some(i) = &rec.imu {
-            push3(&mut cells, &i.acc_mps2[r], 5);
-            push3(&mut cells, &i.gyr_rps[r], 6);
+            push3(&mut values, &i.acc_mps2[r], 5);
+            push3(&mut values, &i.gyr_rps[r], 6);
         }
         if let Some(q) = &rec.attitude {
             let q = q[r].quaternion();
-            for c in [q.w, q.i, q.j, q.k] {
-                cells.push(format!("{:.7}", c + 0.0));
-            }
+            values.extend([q.w, q.i, q.j, q.k].map(|c| (c, 7)));
         }
         if let Some(g) = &rec.truth {
-            push3(&mut cells, &g.field_ut[r], 4);
-            push3(&mut cells, &g.dist_ut[r], 4);
-            push3(&mut cells, &g.sd_ut[r], 4);
+            push3(&mut values, &g.field_ut[r], 4);
+            push3(&mut values, &g.dist_ut[r], 4);
+            push3(&mut values, &g.sd_ut[r], 4);
+        }
+        cells.clear();
+        for (k, &(v, decimals)) in values.iter().enumerate() {
+            if !(v.is_finite() && v.abs() <= limits[k]) {
+                return Err(CoreError::BadCell {
+                    path: origin.to_path_buf(),
+                    row: r + 1,
+                    column: names[k].clone(),
+                    found: v.to_string(),
+                    expected: format!(
+                        "a finite number of magnitude at most {:e} (nothing was written)",
+                        limits[k]
+                    ),
+                });
+            }
+            // `+ 0.0` turns -0.0 into 0.0 so that signs of zero never differ between runs.
+            cells.push(format!("{:.*}", decimals, v + 0.0));
         }
         cells.extend(rec.extra.iter().map(|(_, c)| c[r].clone()));
         w.write_record(&cells).map_err(io)?;
@@ -369,11 +451,8 @@ pub fn write_to(rec: &Recording, out: impl Write, origin: &Path) -> Result<(), C
     Ok(())
 }
 
-fn push3(cells: &mut Vec<String>, v: &Vec3, decimals: usize) {
-    for k in 0..3 {
-        // `+ 0.0` turns -0.0 into 0.0 so that signs of zero never differ between runs.
-        cells.push(format!("{:.*}", decimals, v[k] + 0.0));
-    }
+fn push3(values: &mut Vec<(f64, usize)>, v: &Vec3, decimals: usize) {
+    values.extend((0..3).map(|k| (v[k], decimals)));
 }
 
 /// Writes a recording to a file atomically: the file appears complete or not at all.

@@ -23,7 +23,11 @@ pub(crate) fn read<T: DeserializeOwned>(
     version: u32,
     head: impl Fn(&T) -> (&str, u32),
 ) -> Result<T, DiagnoseError> {
-    let text = std::fs::read_to_string(path).map_err(|source| DiagnoseError::Io {
+    let text = magstand_core::input_file::read_to_string(
+        path,
+        magstand_core::input_file::MAX_DOCUMENT_BYTES,
+    )
+    .map_err(|source| DiagnoseError::Io {
         path: path.to_path_buf(),
         source,
     })?;

@@ -41,6 +41,27 @@ pub const FORMAT: &str = "magstand-model";
 /// Current model file version.
 pub const VERSION: u32 = 1;
 
+/// Largest motor count a model file may declare.
+pub const MAX_MOTORS: usize = 32;
+/// Largest magnitude of a raw input bound (`lo`, `hi`, `off_raw`): a current of 1e5 A.
+pub const MAX_RAW_INPUT: f64 = 1e5;
+/// Smallest raw input span `hi - lo`.
+pub const MIN_INPUT_SPAN: f64 = 1e-6;
+/// Largest magnitude of a field value (reference, noise sd), µT: 0.1 T.
+pub const MAX_FIELD_UT: f64 = 1e5;
+/// Largest magnitude of a model coefficient, µT per unit of normalized input.
+pub const MAX_COEFFICIENT_UT: f64 = 1e6;
+/// Largest number of local models.
+pub const MAX_LOCAL_MODELS: usize = 100;
+/// Largest magnitude of a centre or knot on the normalized input.
+pub const MAX_CENTER: f64 = 10.0;
+/// Largest RBF width parameter.
+pub const MAX_WIDTH: f64 = 1e4;
+/// Largest number of polynomial coefficients per axis.
+pub const MAX_POLYNOMIAL_TERMS: usize = 21;
+/// Largest number of noise-model knots.
+pub const MAX_SD_KNOTS: usize = 1000;
+
 /// The functional form of a model.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "kind", rename_all = "snake_case")]
@@ -299,6 +320,25 @@ impl Model {
 
     /// Writes the model as pretty JSON, atomically.
     pub fn save(&self, path: &Path) -> Result<(), IdentError> {
+        // Never write what `load` would refuse: a model of non-finite or absurd numbers is a
+        // failed fit, not a result.
+        let summary_finite = self.summary.as_ref().is_none_or(|s| {
+            s.rmse_ut
+                .iter()
+                .chain(&s.r2)
+                .chain(&s.holdout_rmse_ut)
+                .all(|v| v.is_finite())
+        });
+        if let Err(why) = self.validate().and_then(|()| {
+            summary_finite
+                .then_some(())
+                .ok_or_else(|| "its fit statistics are not finite".to_string())
+        }) {
+            return Err(IdentError::ModelFile {
+                origin: path.display().to_string(),
+                message: format!("the fitted model is not written: {why}"),
+            });
+        }
         let text = serde_json::to_string_pretty(self).expect("a model always serializes") + "\n";
         atomic_file::write_bytes(path, text.as_bytes())?;
         Ok(())
@@ -307,7 +347,11 @@ impl Model {
     /// Reads a model file and checks its format, version and consistency.
     pub fn load(path: &Path) -> Result<Self, IdentError> {
         let origin = path.display().to_string();
-        let text = std::fs::read_to_string(path).map_err(|e| IdentError::ModelFile {
+        let text = magstand_core::input_file::read_to_string(
+            path,
+            magstand_core::input_file::MAX_DOCUMENT_BYTES,
+        )
+        .map_err(|e| IdentError::ModelFile {
             origin: origin.clone(),
             message: e.to_string(),
         })?;
@@ -343,14 +387,30 @@ impl Model {
 
     fn validate(&self) -> Result<(), String> {
         let i = &self.input;
-        if !(i.lo.is_finite() && i.hi.is_finite() && i.hi > i.lo) {
+        // The same bounds the fit keeps: inputs of a real vehicle (a current of at most
+        // 1e5 A), a span that normalizes without overflow, values whose products stay finite.
+        let within = |v: f64, limit: f64| v.is_finite() && v.abs() <= limit;
+        if !(within(i.lo, MAX_RAW_INPUT)
+            && within(i.hi, MAX_RAW_INPUT)
+            && i.hi - i.lo >= MIN_INPUT_SPAN
+            && within(i.off_raw, MAX_RAW_INPUT))
+        {
             return Err(format!(
-                "input range lo={} hi={} must be finite with hi > lo",
-                i.lo, i.hi
+                "input range lo={} hi={} off_raw={}: expected finite values of magnitude at most {MAX_RAW_INPUT:e} with hi - lo at least {MIN_INPUT_SPAN:e}",
+                i.lo, i.hi, i.off_raw
             ));
         }
-        if i.motors == 0 {
-            return Err("input.motors must be at least 1".into());
+        if !(1..=MAX_MOTORS).contains(&i.motors) {
+            return Err(format!(
+                "input.motors = {}: expected 1..{MAX_MOTORS}",
+                i.motors
+            ));
+        }
+        if !self.reference_ut.iter().all(|v| within(*v, MAX_FIELD_UT)) {
+            return Err(format!(
+                "reference_ut = {:?}: expected finite values of magnitude at most {MAX_FIELD_UT:e} µT",
+                self.reference_ut
+            ));
         }
         if let Some(r) = &self.identified
             && !(r.lo.is_finite()
@@ -373,6 +433,23 @@ impl Model {
         match &self.structure {
             Structure::LocalLinear(net) => {
                 let part = &net.partition;
+                if part.len() > MAX_LOCAL_MODELS
+                    || !part.centers().iter().all(|c| within(*c, MAX_CENTER))
+                    || !part.widths().iter().all(|w| within(*w, MAX_WIDTH))
+                {
+                    return Err(format!(
+                        "partition: {} local models, centres {:?}, widths {:?}; expected at most {MAX_LOCAL_MODELS}, centres within +-{MAX_CENTER} and widths at most {MAX_WIDTH} on the normalized input",
+                        part.len(),
+                        part.centers(),
+                        part.widths()
+                    ));
+                }
+                if net.coefficients.len() != 3 {
+                    return Err(format!(
+                        "coefficients: {} axes; expected 3",
+                        net.coefficients.len()
+                    ));
+                }
                 if magstand_core::rbf::RbfPartition::new(
                     part.centers().to_vec(),
                     part.widths().to_vec(),
@@ -385,12 +462,12 @@ impl Model {
                 }
                 for (a, per_axis) in net.coefficients.iter().enumerate() {
                     if per_axis.len() != net.partition.len()
-                        || per_axis
-                            .iter()
-                            .any(|c| c.len() != p || c.iter().any(|v| !v.is_finite()))
+                        || per_axis.iter().any(|c| {
+                            c.len() != p || c.iter().any(|v| !within(*v, MAX_COEFFICIENT_UT))
+                        })
                     {
                         return Err(format!(
-                            "axis {}: expected {} local models of {p} finite coefficients",
+                            "axis {}: expected {} local models of {p} finite coefficients of magnitude at most {MAX_COEFFICIENT_UT:e} µT",
                             AXES[a],
                             net.partition.len()
                         ));
@@ -398,21 +475,33 @@ impl Model {
                 }
             }
             Structure::Polynomial { coefficients } => {
-                if coefficients
-                    .iter()
-                    .any(|c| c.is_empty() || c.iter().any(|v| !v.is_finite()))
+                if coefficients.len() != 3
+                    || coefficients.iter().any(|c| {
+                        c.is_empty()
+                            || c.len() > MAX_POLYNOMIAL_TERMS
+                            || c.iter().any(|v| !within(*v, MAX_COEFFICIENT_UT))
+                    })
                 {
-                    return Err("polynomial coefficients must be non-empty and finite".into());
+                    return Err(format!(
+                        "polynomial coefficients: expected 3 axes of 1..{MAX_POLYNOMIAL_TERMS} finite coefficients of magnitude at most {MAX_COEFFICIENT_UT:e} µT"
+                    ));
                 }
             }
         }
         if let Some(sd) = &self.sd
             && (sd.knots.len() < 2
+                || sd.knots.len() > MAX_SD_KNOTS
+                || !sd.knots.iter().all(|k| within(*k, MAX_CENTER))
+                || sd.knots.windows(2).any(|w| w[0] >= w[1])
+                || sd.sd_ut.len() != 3
                 || sd.sd_ut.iter().any(|s| {
-                    s.len() != sd.knots.len() || s.iter().any(|v| !(v.is_finite() && *v >= 0.0))
+                    s.len() != sd.knots.len()
+                        || s.iter().any(|v| !(within(*v, MAX_FIELD_UT) && *v >= 0.0))
                 }))
         {
-            return Err("sd model needs at least two knots and one finite non-negative sd per knot and axis".into());
+            return Err(format!(
+                "sd model needs 2..{MAX_SD_KNOTS} ascending knots within +-{MAX_CENTER} and, per axis, one non-negative sd of at most {MAX_FIELD_UT:e} µT per knot"
+            ));
         }
         Ok(())
     }

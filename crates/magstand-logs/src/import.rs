@@ -177,10 +177,11 @@ pub fn import_file(
     path: &Path,
     opts: &ImportOptions,
 ) -> Result<(Recording, ImportReport), LogsError> {
-    let bytes = std::fs::read(path).map_err(|source| LogsError::Io {
-        path: path.to_path_buf(),
-        source,
-    })?;
+    let bytes = magstand_core::input_file::read(path, magstand_core::input_file::MAX_LOG_BYTES)
+        .map_err(|source| LogsError::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
     import_bytes(&bytes, path, opts)
 }
 

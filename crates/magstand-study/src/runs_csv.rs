@@ -105,13 +105,13 @@ pub fn read(path: &Path) -> Result<Vec<MethodOutcome>, StudyError> {
         path: path.into(),
         message,
     };
-    let mut r = csv::Reader::from_path(path).map_err(|e| match e.into_kind() {
-        csv::ErrorKind::Io(source) => StudyError::Io {
-            path: path.into(),
-            source,
-        },
-        other => bad(format!("{other:?}")),
-    })?;
+    let file =
+        magstand_core::input_file::open(path, magstand_core::input_file::MAX_RECORDING_BYTES)
+            .map_err(|source| StudyError::Io {
+                path: path.into(),
+                source,
+            })?;
+    let mut r = csv::Reader::from_reader(std::io::BufReader::new(file));
     let want = header();
     let got: Vec<String> = r
         .headers()

@@ -68,7 +68,11 @@ impl StudyInfo {
 
     /// Reads and checks `study.json`.
     pub fn read(path: &Path) -> Result<Self, StudyError> {
-        let text = std::fs::read_to_string(path).map_err(|source| StudyError::Io {
+        let text = magstand_core::input_file::read_to_string(
+            path,
+            magstand_core::input_file::MAX_DOCUMENT_BYTES,
+        )
+        .map_err(|source| StudyError::Io {
             path: path.into(),
             source,
         })?;

@@ -215,6 +215,19 @@ pub fn linear_approximation(
     }
     let slope: [f64; 3] =
         std::array::from_fn(|a| x.iter().zip(&dist).map(|(v, d)| v * d[a]).sum::<f64>() / sxx);
+    // A firmware parameter is the worst place for a wrong number: the slope must be finite
+    // and inside ArduPilot's documented COMPASS_MOT range (+-1000 mG per unit throttle or per
+    // A; the same field per unit is PX4's +-1 G or +-1000 G/kA).
+    if let Some(a) =
+        (0..3).find(|&a| !(slope[a].is_finite() && (slope[a] * 10.0).abs() <= MAX_COMPASS_MOT_MG))
+    {
+        return Err(LogsError::Export(format!(
+            "the line's {} slope is {:e} {}: outside the +-{MAX_COMPASS_MOT_MG} mG per unit the autopilots accept; the model does not describe a real vehicle (check the model file)",
+            ["x", "y", "z"][a],
+            slope[a],
+            input.unit()
+        )));
+    }
     let line = Vec3::from(slope);
     let rms_left_ut = std::array::from_fn(|a| {
         (x.iter()
@@ -233,6 +246,9 @@ pub fn linear_approximation(
         uncompensated_heading_deg: worst_heading_deg(model, n, |k| dist[k]),
     })
 }
+
+/// ArduPilot's documented range of `COMPASS_MOT_{X,Y,Z}`, mG per unit throttle or per A.
+pub const MAX_COMPASS_MOT_MG: f64 = 1000.0;
 
 /// An autopilot's parameter values for a line: the type parameter and the three coefficients,
 /// in the autopilot's units and sign.

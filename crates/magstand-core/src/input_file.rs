@@ -1,0 +1,99 @@
+//! Reading an input file with its cost bounded by a size limit, not by what the file claims.
+//!
+//! Every reader of a user's file goes through here: a device such as `/dev/zero`, a FIFO or a
+//! directory is refused by name before anything is read, and a regular file larger than the
+//! reader's limit is refused before it is loaded. The errors are `std::io::Error`s with a
+//! sentence a person can act on, so each crate keeps its own error type around them.
+//!
+//! ```
+//! use magstand_core::input_file;
+//! let e = input_file::read_to_string(std::path::Path::new("/"), 1024).unwrap_err();
+//! assert!(e.to_string().contains("is a directory"));
+//! ```
+use std::io::{self, Read};
+use std::path::Path;
+
+/// Largest recording CSV read, bytes (2 GiB: tens of millions of rows).
+pub const MAX_RECORDING_BYTES: u64 = 2 << 30;
+/// Largest log file read, bytes (2 GiB).
+pub const MAX_LOG_BYTES: u64 = 2 << 30;
+/// Largest model, diagnosis, study or scenario file read, bytes (64 MiB).
+pub const MAX_DOCUMENT_BYTES: u64 = 64 << 20;
+
+/// Opens `path` for reading after checking that it is a regular file of at most `max_bytes`.
+pub fn open(path: &Path, max_bytes: u64) -> io::Result<std::fs::File> {
+    let meta = std::fs::metadata(path)?;
+    if meta.is_dir() {
+        return Err(io::Error::new(
+            io::ErrorKind::InvalidInput,
+            "is a directory; expected a file",
+        ));
+    }
+    if !meta.is_file() {
+        return Err(io::Error::new(
+            io::ErrorKind::InvalidInput,
+            "is not a regular file (a device, FIFO or socket); expected a file",
+        ));
+    }
+    if meta.len() > max_bytes {
+        return Err(too_large(meta.len(), max_bytes));
+    }
+    std::fs::File::open(path)
+}
+
+fn too_large(len: u64, max_bytes: u64) -> io::Error {
+    io::Error::new(
+        io::ErrorKind::InvalidInput,
+        format!("is {len} bytes, more than the {max_bytes} bytes this input may have"),
+    )
+}
+
+/// Reads all of `path` (see [`open`]); a file that grows past the limit while being read is
+/// refused too.
+pub fn read(path: &Path, max_bytes: u64) -> io::Result<Vec<u8>> {
+    let mut out = Vec::new();
+    open(path, max_bytes)?
+        .take(max_bytes + 1)
+        .read_to_end(&mut out)?;
+    if out.len() as u64 > max_bytes {
+        return Err(too_large(out.len() as u64, max_bytes));
+    }
+    Ok(out)
+}
+
+/// Reads all of `path` as UTF-8 text (see [`read`]).
+pub fn read_to_string(path: &Path, max_bytes: u64) -> io::Result<String> {
+    String::from_utf8(read(path, max_bytes)?).map_err(|e| {
+        io::Error::new(
+            io::ErrorKind::InvalidData,
+            format!(
+                "is not UTF-8 text (byte {} is not); expected a text file",
+                e.utf8_error().valid_up_to()
+            ),
+        )
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn devices_directories_and_large_files_are_refused_by_name() {
+        let e = read(Path::new("/dev/zero"), 1 << 20)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("not a regular file"), "{e}");
+        let e = read(Path::new("/tmp"), 1 << 20).unwrap_err().to_string();
+        assert!(e.contains("is a directory"), "{e}");
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("big.csv");
+        std::fs::write(&p, vec![b'1'; 2000]).unwrap();
+        let e = read(&p, 1000).unwrap_err().to_string();
+        assert!(e.contains("2000 bytes") && e.contains("1000"), "{e}");
+        assert_eq!(read(&p, 2000).unwrap().len(), 2000);
+        std::fs::write(&p, [0xff, 0xfe]).unwrap();
+        let e = read_to_string(&p, 10).unwrap_err().to_string();
+        assert!(e.contains("not UTF-8"), "{e}");
+    }
+}
