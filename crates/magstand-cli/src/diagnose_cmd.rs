@@ -38,9 +38,9 @@ pub struct DiagnoseArgs {
     /// Family-wise significance of each decision.
     #[arg(long, default_value_t = 0.01)]
     significance: f64,
-    /// Threads for the candidates (0: all cores).
-    #[arg(long, default_value_t = 0)]
-    threads: usize,
+    /// Threads for the candidates (0: all cores; at most 1024).
+    #[arg(long, default_value_t = 0, value_parser = clap::value_parser!(u16).range(0..=1024))]
+    threads: u16,
 }
 
 /// Runs `magstand diagnose`.
@@ -72,7 +72,7 @@ pub fn run(a: DiagnoseArgs) -> Result<()> {
     let rec = recording_csv::read(&a.recording)?;
     let name = a.recording.display().to_string();
     let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(a.threads)
+        .num_threads(usize::from(a.threads))
         .build()
         .context("starting the worker threads")?;
     let d = pool.install(|| diagnose(&rec, &name, &nominal, &config))?;

@@ -46,9 +46,9 @@ struct StudyArgs {
     /// Study seed (default: the scenario's).
     #[arg(long)]
     seed: Option<u64>,
-    /// Worker threads (default: all cores). Results do not depend on it.
-    #[arg(long)]
-    threads: Option<usize>,
+    /// Worker threads (default: all cores; 1 to 1024). Results do not depend on it.
+    #[arg(long, value_parser = clap::value_parser!(u16).range(1..=1024))]
+    threads: Option<u16>,
     /// Run only slice K of M (e.g. 3/10); merge the slices with `magstand montecarlo merge`.
     #[arg(long)]
     shard: Option<String>,
@@ -113,7 +113,7 @@ fn study(a: StudyArgs) -> Result<()> {
         files::refuse_overwriting_inputs(&inputs, &[&out.join("runs.csv")])?;
         files::ensure_dir(&out)?;
         let bar = RunsBar::new("montecarlo", valid.run_indices().len());
-        let result = run_study(&valid, a.threads, &bar)?;
+        let result = run_study(&valid, a.threads.map(usize::from), &bar)?;
         drop(bar);
         return finish(&result, &out, a.json.as_deref());
     };
@@ -145,7 +145,7 @@ fn study(a: StudyArgs) -> Result<()> {
         let dir = out.join(format!("{}={v}", key.replace(['/', '\\'], "_")));
         files::ensure_dir(&dir)?;
         let bar = RunsBar::new(&format!("{key}={v}"), valid.run_indices().len());
-        let result = run_study(valid, a.threads, &bar)?;
+        let result = run_study(valid, a.threads.map(usize::from), &bar)?;
         drop(bar);
         let summary = result.write(&dir)?.expect("a sweep runs whole studies");
         write_figures(&summary, &result, &dir)?;

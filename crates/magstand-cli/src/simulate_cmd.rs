@@ -50,6 +50,16 @@ pub fn load_scenario(spec: &str, overrides: &[String]) -> Result<magstand_sim::V
 
 /// Runs `magstand simulate`.
 pub fn run(a: SimulateArgs) -> Result<()> {
+    let created = !a.out.exists();
+    let result = run_into(&a);
+    // A failed run leaves no folder it created (only an empty one can be ours to remove).
+    if result.is_err() && created {
+        let _ = std::fs::remove_dir(&a.out);
+    }
+    result
+}
+
+fn run_into(a: &SimulateArgs) -> Result<()> {
     let scenario = load_scenario(&a.scenario, &a.overrides)?;
     let seed = a.seed.unwrap_or(scenario.params().seed);
     files::ensure_dir(&a.out)?;

@@ -147,6 +147,33 @@ impl AugmentedModel {
                 "expected one finite coefficient triple per column".into(),
             ));
         }
+        if !(m.block_s.is_finite() && m.block_s > 0.0 && m.block_s <= 1e6) {
+            return Err(versioned_json::malformed(
+                path,
+                format!(
+                    "block_s = {}: expected a positive block length of at most 1e6 s",
+                    m.block_s
+                ),
+            ));
+        }
+        if !(1..=1000).contains(&m.holdout_every) {
+            return Err(versioned_json::malformed(
+                path,
+                format!("holdout_every = {}: expected 1..1000", m.holdout_every),
+            ));
+        }
+        if !(m.command_lead.is_finite() && (0.0..=1.0).contains(&m.command_lead)) {
+            return Err(versioned_json::malformed(
+                path,
+                format!("command_lead = {}: expected 0..1", m.command_lead),
+            ));
+        }
+        if m.coefficients.iter().flatten().any(|c| c.abs() > 1e9) {
+            return Err(versioned_json::malformed(
+                path,
+                "a coefficient beyond 1e9 µT per unit: not a physical model".into(),
+            ));
+        }
         if m.noise.as_ref().is_some_and(|n| !n.is_valid()) {
             return Err(versioned_json::malformed(
                 path,
@@ -224,6 +251,37 @@ impl AugmentedModel {
             rec_origin: origin.into(),
             command_lead: self.command_lead,
         };
+        // Each effect's parameters as its own search defines them: as many as it searches,
+        // finite, positive where it searches on a log scale, and within ten times its range.
+        for (e, theta) in &terms {
+            let searches = e.search(&ctx);
+            let fits = theta.len() == searches.len()
+                && theta.iter().zip(&searches).all(|(v, s)| {
+                    v.is_finite()
+                        && (!s.log || *v > 0.0)
+                        && v.abs() <= 10.0 * s.lo.abs().max(s.hi.abs())
+                });
+            if !fits {
+                return Err(bad(format!(
+                    "the model's effect `{}` has theta {:?}; expected {} value(s) [{}]",
+                    e.name(),
+                    theta,
+                    searches.len(),
+                    searches
+                        .iter()
+                        .map(|s| format!(
+                            "{} {}..{} {}{}",
+                            s.name,
+                            s.lo,
+                            s.hi,
+                            s.unit,
+                            if s.log { ", positive" } else { "" }
+                        ))
+                        .collect::<Vec<_>>()
+                        .join("; ")
+                )));
+            }
+        }
         let built = build_with_lead(&ctx, &terms, self.command_lead);
         if built.design.names != self.columns {
             return Err(bad(format!(

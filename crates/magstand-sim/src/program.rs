@@ -154,8 +154,56 @@ pub struct Program {
     differential: DifferentialParams,
 }
 
+/// Longest program a scenario may run, s of simulated time (ten hours): the cost of a
+/// simulation grows with it, so it is bounded before anything is allocated.
+pub const MAX_PROGRAM_S: f64 = 36_000.0;
+
 impl ProgramParams {
-    pub(crate) fn check(&self, c: &Checker) -> Result<(), SimError> {
+    /// An upper bound of the program's duration, s, from its parameters alone (a replay's
+    /// comes from its recording, which is checked when it is read).
+    pub fn duration_bound_s(&self, motors: usize) -> f64 {
+        match *self {
+            // Up and back down (a "both" stair) per pass, each pass after an off time.
+            ProgramParams::Stair {
+                off_s,
+                steps,
+                dwell_s,
+                repeats,
+                ..
+            } => f64::from(repeats) * (off_s + 2.0 * f64::from(steps) * dwell_s) + off_s,
+            ProgramParams::Ramp {
+                off_s,
+                duration_s,
+                repeats,
+                ..
+            } => f64::from(repeats) * (off_s + 2.0 * duration_s) + off_s,
+            ProgramParams::PerMotorSteps {
+                off_s,
+                steps,
+                dwell_s,
+                ..
+            } => (motors as f64 + 1.0) * (off_s + 2.0 * f64::from(steps) * dwell_s),
+            ProgramParams::RandomSteps {
+                off_s,
+                count,
+                dwell_max_s,
+                ..
+            } => 2.0 * off_s + f64::from(count) * dwell_max_s,
+            ProgramParams::Replay { .. } => 0.0,
+        }
+    }
+
+    pub(crate) fn check(&self, c: &Checker, motors: usize) -> Result<(), SimError> {
+        let bound = self.duration_bound_s(motors);
+        if !(bound <= MAX_PROGRAM_S) {
+            return Err(c.fail(
+                "program",
+                format!("up to {bound:.3e} s of simulated time"),
+                &format!(
+                    "a program of at most {MAX_PROGRAM_S} s (fewer steps or repeats, shorter dwell_s or off_s)"
+                ),
+            ));
+        }
         let dur = |k: &str, v: f64| c.range(&format!("program.{k}"), v, 0.0, 1e6);
         let cmd = |k: &str, v: f64| c.range(&format!("program.{k}"), v, 0.0, 1.0);
         let count = |k: &str, v: u32| {

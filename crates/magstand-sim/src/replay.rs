@@ -31,13 +31,22 @@ const SETTLE_TIME_CONSTANTS: f64 = 20.0;
 /// command (first-order lags advanced exactly, a charge drawn linearly).
 const SETTLED_SUBSTEP_S: f64 = 1.0;
 
+/// Most substeps in each stretch of an interval (settling, settled), so that the cost of a
+/// replay is bounded by its rows, not by the time they span: a recording whose clock is in
+/// microseconds, or one row an hour later, costs at most this many steps per stretch.
+const MAX_SUBSTEPS_PER_STRETCH: f64 = 256.0;
+
 /// The substeps `(start, end, length)` of an interval of `dt` seconds whose command switches at
 /// `switch_s`: uniform steps of at most [`MAX_SUBSTEP_S`] for an ordinary interval; for a gap,
 /// fine steps for `settle_s` after the start and after the switch, coarse ones after that.
-/// A 10-minute gap between two flights then costs hundreds of substeps, not 60 000.
+/// A 10-minute gap between two flights then costs hundreds of substeps, not 60 000, and no
+/// interval costs more than [`MAX_SUBSTEPS_PER_STRETCH`] per stretch (a non-finite length
+/// counts as one step).
 fn substeps(dt: f64, switch_s: f64, settle_s: f64) -> Vec<(f64, f64, f64)> {
     let uniform = |a: f64, b: f64, longest: f64| {
-        let n = ((b - a) / longest).ceil().max(1.0) as usize;
+        let n = ((b - a) / longest)
+            .ceil()
+            .clamp(1.0, MAX_SUBSTEPS_PER_STRETCH) as usize;
         let h = (b - a) / n as f64;
         (0..n).map(move |k| (a + k as f64 * h, a + (k + 1) as f64 * h, h))
     };
@@ -351,5 +360,12 @@ mod tests {
         assert!(n < 2_000, "{n} substeps for a 600 s gap");
         // An ordinary interval keeps its uniform substeps.
         assert_eq!(substeps(0.1, 0.05, 1.0).len(), 10);
+        // Regression (bad-inputs/time-in-microseconds.csv, last-row-t-1e300.csv): the cost of
+        // an interval grew with its length, so a clock in microseconds never finished and a
+        // last row at 1e300 s looped forever. It is bounded now, whatever the length.
+        for dt in [2e4, 1e9, 1e300] {
+            let n = substeps(dt, 0.5 * dt, 1.0).len();
+            assert!(n <= 4 * 256, "{n} substeps for an interval of {dt} s");
+        }
     }
 }

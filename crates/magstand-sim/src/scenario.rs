@@ -261,7 +261,7 @@ impl Scenario {
     ) -> Result<ValidScenario, SimError> {
         let c = Checker { origin };
         c.range("physics_hz", self.physics_hz, 10.0, 100_000.0)?;
-        self.program.check(&c)?;
+        self.program.check(&c, self.motors.count)?;
         c.range(
             "differential.amplitude",
             self.differential.amplitude,

@@ -80,6 +80,19 @@ fn prepare(
             nominal.origin()
         )));
     }
+    // A stuck or disconnected sensor (an axis that reads the same in every row, often zero)
+    // gives a residual with no noise at all, which any effect "explains": refuse it by name.
+    if let Some(first) = rec.mag_ut.first()
+        && let Some(a) =
+            (0..3).find(|&a| rec.mag_ut.iter().all(|m| (m[a] - first[a]).abs() <= 1e-9))
+    {
+        return Err(bad(format!(
+            "the magnetometer does not respond: mag_{}_ut reads {:.4} µT in every one of the {} rows; expected readings that change with the commands and the noise",
+            magstand_core::AXES[a],
+            first[a],
+            rec.len()
+        )));
+    }
     let split = Split::new(&rec.t_s, cfg.block_s, cfg.holdout_every);
     if split.holdout_blocks() < MIN_HOLDOUT_BLOCKS || split.fit_rows() < 50 {
         return Err(bad(format!(
