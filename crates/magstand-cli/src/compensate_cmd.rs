@@ -5,7 +5,7 @@ use anyhow::{Context, Result};
 use clap::Args;
 
 use crate::files;
-use magstand_core::recording_csv;
+use magstand_core::{Recording, Vec3, recording_csv};
 use magstand_ident::metrics::{Evaluation, against_truth};
 use magstand_ident::{Model, flight};
 
@@ -60,15 +60,17 @@ fn run_augmented(a: &CompensateArgs, model_text: &str) -> Result<()> {
         },
         a.out.display()
     );
-    // What the model removed from each row is its predicted disturbance.
-    let removed: Vec<_> = rec
-        .mag_ut
+    print_truth(against_truth(&rec, &removed(&rec, &out)).map(|(e, _)| e));
+    Ok(())
+}
+
+/// What a compensation removed from each row: its predicted disturbance.
+fn removed(rec: &Recording, out: &Recording) -> Vec<Vec3> {
+    rec.mag_ut
         .iter()
         .zip(&out.mag_ut)
         .map(|(m, c)| m - c)
-        .collect();
-    print_truth(against_truth(&rec, &removed).map(|(e, _)| e));
-    Ok(())
+        .collect()
 }
 
 /// How far beyond its identified range, as a fraction of the range, an input must lie to be
@@ -78,21 +80,20 @@ const BEYOND_MARGIN: f64 = 0.05;
 
 /// Warns when rows of `rec` lie beyond the input range the model was identified on: there it
 /// continues linearly from its edge, which is safe but not identified.
-fn warn_beyond_identified(model: &Model, rec: &magstand_core::Recording, origin: &str) {
+fn warn_beyond_identified(model: &Model, rec: &Recording, origin: &str) {
     let Some(range) = &model.identified else {
         return;
     };
     let i = &model.input;
     let beyond = (0..rec.len())
-        .filter(|&r| !range.contains_within(i.normalize(i.raw(rec, r)), BEYOND_MARGIN))
+        .filter(|&r| !range.contains(i.normalize(i.raw(rec, r)), BEYOND_MARGIN))
         .count();
     if beyond > 0 {
-        let raw = |u: f64| i.lo + u * (i.hi - i.lo);
         eprintln!(
             "warning: {origin}: {beyond} of {} rows lie beyond the input range the model was identified on ({:.3}..{:.3}); there it continues linearly from its edge",
             rec.len(),
-            raw(range.lo),
-            raw(range.hi)
+            i.denormalize(range.lo),
+            i.denormalize(range.hi)
         );
     }
 }
@@ -110,12 +111,14 @@ pub fn run(a: CompensateArgs) -> Result<()> {
         return run_augmented(&a, &text);
     }
     let model = Model::from_json(&text, &a.model.display().to_string())?;
+    let origin = a.recording.display().to_string();
     let rec = recording_csv::read(&a.recording)?;
-    let out = model.compensate(&rec, &a.recording.display().to_string())?;
+    let out = model.compensate(&rec, &origin)?;
     files::ensure_parent(&a.out)?;
     recording_csv::write(&out, &a.out)?;
-    warn_beyond_identified(&model, &rec, &a.recording.display().to_string());
-    let origin = a.recording.display().to_string();
+    warn_beyond_identified(&model, &rec, &origin);
+    // The prediction is what the compensation removed: evaluated once, not again.
+    let dist = removed(&rec, &out);
     if flight::is_flight(&rec) {
         // A turning vehicle: the stand's figures (heading at fixed attitude, interference
         // over levels) mean nothing; judge the field's magnitude and the heading instead.
@@ -133,11 +136,10 @@ pub fn run(a: CompensateArgs) -> Result<()> {
             f.heading_max_deg.0,
             f.heading_max_deg.1
         );
-        let ev = Evaluation::new(&model, &rec);
-        print_truth(ev.truth_rmse_ut);
+        print_truth(against_truth(&rec, &dist).map(|(e, _)| e));
         return Ok(());
     }
-    let ev = Evaluation::new(&model, &rec);
+    let ev = Evaluation::from_prediction(&model, &rec, &dist);
     println!(
         "compensated {} rows -> {}; heading error (worst level) {:.2} deg -> {:.2} deg; interference {:.1} % -> {:.1} %",
         rec.len(),

@@ -101,6 +101,16 @@ pub fn run(a: ExportArgs) -> Result<()> {
             model.input.kind
         );
     }
+    // The instance names a parameter: checked before any work is done for it.
+    match (a.target, a.instance) {
+        (Target::Px4, Some(i)) if i > 3 => {
+            bail!("--instance {i}: PX4 magnetometers are numbered CAL_MAG0 to CAL_MAG3")
+        }
+        (Target::Ardupilot, Some(i)) if !(1..=3).contains(&i) => {
+            bail!("--instance {i}: ArduPilot compasses are numbered 1 to 3")
+        }
+        _ => {}
+    }
     // What the autopilot forms cost goes to stderr, so stdout stays a clean file.
     let text = match a.target {
         Target::C => c_header(&model)?,
@@ -108,22 +118,12 @@ pub fn run(a: ExportArgs) -> Result<()> {
         Target::Px4 => {
             let line = linear_approximation(&model, input, span)?;
             eprint!("{}", describe(&line));
-            {
-                let i = a.instance.unwrap_or(0);
-                if i > 3 {
-                    bail!("--instance {i}: PX4 magnetometers are numbered CAL_MAG0 to CAL_MAG3");
-                }
-                px4_params(&line, i)
-            }
+            px4_params(&line, a.instance.unwrap_or(0))
         }
         Target::Ardupilot => {
             let line = linear_approximation(&model, input, span)?;
             eprint!("{}", describe(&line));
-            let i = a.instance.unwrap_or(1);
-            if !(1..=3).contains(&i) {
-                bail!("--instance {i}: ArduPilot compasses are numbered 1 to 3");
-            }
-            ardupilot_params(&line, i)
+            ardupilot_params(&line, a.instance.unwrap_or(1))
         }
         Target::ArdupilotPerMotor => {
             let Some(rec) = &recording else {

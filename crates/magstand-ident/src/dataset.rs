@@ -55,6 +55,11 @@ impl InputSpec {
         (raw - self.lo) / (self.hi - self.lo)
     }
 
+    /// The raw input of a normalized one (the inverse of [`InputSpec::normalize`]).
+    pub fn denormalize(&self, u: f64) -> f64 {
+        self.lo + u * (self.hi - self.lo)
+    }
+
     /// Raw scheduling input at a row.
     pub fn raw(&self, rec: &Recording, row: usize) -> f64 {
         match self.kind {

@@ -369,11 +369,7 @@ pub fn prepare_flight(
         }
     }
     let tilt = tilts.iter().copied().fold(0.0, f64::max);
-    let yaws: Vec<f64> = att
-        .iter()
-        .map(|q| q.euler_angles().2.to_degrees())
-        .collect();
-    let yaw_span = yaw_coverage_deg(&yaws);
+    let yaw_span = yaw_coverage_deg(att);
     let mut warnings = Vec::new();
     // The relative margin keeps rows exactly half the search apart from warning on rounding.
     if dt > 0.5 * cfg.max_delay_s * (1.0 + 1e-9) {
@@ -448,11 +444,7 @@ pub fn is_flight(rec: &Recording) -> bool {
         .find(|(n, _)| n == "segment")
         .is_some_and(|(_, v)| v.iter().any(|s| s == "flight"));
     let tilt = att.iter().map(tilt_deg).fold(0.0, f64::max);
-    let yaws: Vec<f64> = att
-        .iter()
-        .map(|q| q.euler_angles().2.to_degrees())
-        .collect();
-    marked || tilt > 10.0 || yaw_coverage_deg(&yaws) > 45.0
+    marked || tilt > 10.0 || yaw_coverage_deg(att) > 45.0
 }
 
 /// Flight figures of `after` (the compensated readings of `rec`) against `rec`'s own, over
@@ -541,12 +533,16 @@ fn inclination_sd_deg(e: Vec3, var: Vec3) -> f64 {
         .to_degrees()
 }
 
-/// Degrees of the compass rose covered by a set of headings (360 minus the largest gap).
-fn yaw_coverage_deg(yaws: &[f64]) -> f64 {
-    if yaws.is_empty() {
+/// Degrees of the compass rose covered by the headings of a set of attitudes (360 minus the
+/// largest gap).
+fn yaw_coverage_deg(att: &[magstand_core::Quat]) -> f64 {
+    if att.is_empty() {
         return 0.0;
     }
-    let mut v: Vec<f64> = yaws.iter().map(|y| y.rem_euclid(360.0)).collect();
+    let mut v: Vec<f64> = att
+        .iter()
+        .map(|q| q.euler_angles().2.to_degrees().rem_euclid(360.0))
+        .collect();
     v.sort_by(f64::total_cmp);
     let mut gap = 360.0 - (v[v.len() - 1] - v[0]);
     for w in v.windows(2) {

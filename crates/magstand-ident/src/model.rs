@@ -148,14 +148,9 @@ impl IdentifiedRange {
         })
     }
 
-    /// Whether a normalized input lies inside (with a tolerance of 1e-9).
-    pub fn contains(&self, u: f64) -> bool {
-        self.contains_within(u, 0.0)
-    }
-
     /// Whether a normalized input lies inside the range widened on each side by `margin`
     /// times its width (and 1e-9).
-    pub fn contains_within(&self, u: f64, margin: f64) -> bool {
+    pub fn contains(&self, u: f64, margin: f64) -> bool {
         let m = margin * (self.hi - self.lo) + 1e-9;
         u >= self.lo - m && u <= self.hi + m
     }

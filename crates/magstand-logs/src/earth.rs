@@ -69,11 +69,6 @@ pub fn earth_field(
     }
 }
 
-/// The field in north-east-down, µT (see [`earth_field`] for the models and dates).
-pub fn wmm_ned_ut(lat_deg: f64, lon_deg: f64, alt_m: f64, year: f64) -> Result<Vec3, LogsError> {
-    Ok(earth_field(lat_deg, lon_deg, alt_m, year)?.ned_ut)
-}
-
 fn wmm(
     lat_deg: f64,
     lon_deg: f64,
@@ -140,7 +135,7 @@ mod tests {
     fn field_near_boulder_in_2025_is_the_published_one() {
         // NOAA's calculator for 40 N, 105 W, sea level, 2025.0: intensity about 52 µT,
         // inclination about 66 degrees down, declination about 7.7 degrees east.
-        let e = wmm_ned_ut(40.0, -105.0, 0.0, 2025.0).unwrap();
+        let e = earth_field(40.0, -105.0, 0.0, 2025.0).unwrap().ned_ut;
         let total = e.norm();
         let incl = (e.z / e.xy().norm()).atan().to_degrees();
         assert!((50.0..55.0).contains(&total), "{e:?}");

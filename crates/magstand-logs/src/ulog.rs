@@ -4,13 +4,14 @@
 //! One guard sits in front of the crate: version 0.6.1 slices message payloads by lengths
 //! read from the payload itself (a parameter's key length, an info key length, the fixed
 //! fields of a logging message) without checking them, and panics on a corrupt message whose
-//! length field points past its end. `framing_scan` walks the message framing first and
-//! cuts the file at the first message whose own lengths are inconsistent; the crate then
-//! reads the valid prefix and the cut is reported as damage.
+//! length field points past its end. `framing_scan` walks the message framing first: a
+//! message whose own lengths are inconsistent, or of an unknown type, starts a stretch that
+//! is skipped up to the next synchronisation message (or, with none after it, the file is
+//! cut there), as pyulog does; the crate then reads what is left.
 //!
 //! The same walk drops data messages whose id no subscription registered (a flipped bit in a
 //! real log's msg_id, as pyulog skips it): the crate stops at them, and everything after one
-//! would be lost for a single bad message. How many were dropped is reported as damage.
+//! would be lost for a single bad message. What was skipped or cut is reported as damage.
 use std::borrow::Cow;
 use std::collections::{HashMap, HashSet};
 use std::path::Path;
@@ -147,7 +148,7 @@ fn framing_scan(bytes: &[u8]) -> Framing {
             _ => false,
         };
         if !ok {
-            let what = if kind.is_ascii_graphic() && b"BADROSLCIPMQF".contains(&kind) {
+            let what = if b"BADROSLCIPMQF".contains(&kind) {
                 format!(
                     "a malformed '{}' message at byte {i} (its lengths do not fit its {size} bytes)",
                     kind as char

@@ -132,12 +132,7 @@ pub fn rbf_weights(model: &Model) -> Result<Option<String>, ReportError> {
     for i in 0..net.partition.len() {
         let pts = grid
             .iter()
-            .map(|&u| {
-                (
-                    spec.lo + u * (spec.hi - spec.lo),
-                    net.partition.weights(u)[i],
-                )
-            })
+            .map(|&u| (spec.denormalize(u), net.partition.weights(u)[i]))
             .collect();
         chart = chart.with(Series::line(
             format!("model {} (centre {:.2})", i + 1, net.partition.centers()[i]),

@@ -193,7 +193,10 @@ impl ProgramParams {
         }
     }
 
+    /// Checks each field, then the whole program's length (so a field that is itself wrong,
+    /// a NaN dwell, is named as that field).
     pub(crate) fn check(&self, c: &Checker, motors: usize) -> Result<(), SimError> {
+        self.check_fields(c)?;
         let bound = self.duration_bound_s(motors);
         if !(bound <= MAX_PROGRAM_S) {
             return Err(c.fail(
@@ -204,6 +207,10 @@ impl ProgramParams {
                 ),
             ));
         }
+        Ok(())
+    }
+
+    fn check_fields(&self, c: &Checker) -> Result<(), SimError> {
         let dur = |k: &str, v: f64| c.range(&format!("program.{k}"), v, 0.0, 1e6);
         let cmd = |k: &str, v: f64| c.range(&format!("program.{k}"), v, 0.0, 1.0);
         let count = |k: &str, v: u32| {

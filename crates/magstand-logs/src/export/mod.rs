@@ -132,25 +132,21 @@ pub(crate) fn range_samples(model: &Model, purpose: &str) -> Result<Samples, Log
             "the model's input range ends at {hi}; {purpose} needs a positive range"
         )));
     }
-    let mut s = model.scratch();
-    let x: Vec<f64> = (0..GRID)
-        .map(|i| hi * i as f64 / (GRID - 1) as f64)
-        .collect();
-    let dist = x.iter().map(|&v| model.dist_at_input(v, &mut s)).collect();
-    Ok(Samples { x, dist })
+    Ok(Samples::at(
+        model,
+        (0..GRID)
+            .map(|i| hi * i as f64 / (GRID - 1) as f64)
+            .collect(),
+    ))
 }
 
-/// The model at the quantiles of its identification inputs (raw units).
-fn identified_samples(model: &Model, r: &magstand_ident::IdentifiedRange) -> Samples {
-    let mut s = model.scratch();
-    let i = &model.input;
-    let x: Vec<f64> = r
-        .quantiles
-        .iter()
-        .map(|q| i.lo + q * (i.hi - i.lo))
-        .collect();
-    let dist = x.iter().map(|&v| model.dist_at_input(v, &mut s)).collect();
-    Samples { x, dist }
+impl Samples {
+    /// The model's disturbance at the raw inputs `x`.
+    fn at(model: &Model, x: Vec<f64>) -> Self {
+        let mut s = model.scratch();
+        let dist = x.iter().map(|&v| model.dist_at_input(v, &mut s)).collect();
+        Samples { x, dist }
+    }
 }
 
 fn samples(model: &Model, input: LineInput, span: Span) -> Result<Samples, LogsError> {
@@ -171,7 +167,14 @@ fn samples(model: &Model, input: LineInput, span: Span) -> Result<Samples, LogsE
                 )));
             }
             match &model.identified {
-                Some(r) => Ok(identified_samples(model, r)),
+                // The quantiles of the identification inputs, in raw units.
+                Some(r) => Ok(Samples::at(
+                    model,
+                    r.quantiles
+                        .iter()
+                        .map(|&q| model.input.denormalize(q))
+                        .collect(),
+                )),
                 None => range_samples(model, "a line"),
             }
         }
