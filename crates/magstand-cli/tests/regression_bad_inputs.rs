@@ -6,14 +6,10 @@
 //! work of a replay is bounded by its rows, a simulation by a documented duration).
 mod common;
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 fn bad(name: &str) -> String {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../../tests/data/bad-inputs")
-        .join(name)
-        .display()
-        .to_string()
+    common::test_data("bad-inputs", name)
 }
 
 /// Runs `args` (with `{out}` replaced by a fresh output path), expects a clean refusal whose

@@ -8,10 +8,8 @@ mod common;
 fn a_2015_log_is_fitted_against_igrf() {
     let dir = tempfile::tempdir().unwrap();
     let rec = dir.path().join("rec.csv");
-    let log = concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../../tests/data/real-logs/ardupilot-log171-quad.bin"
-    );
+    let log = common::test_data("real-logs", "ardupilot-log171-quad.bin");
+    let log = log.as_str();
     let r = common::magstand(&["import", "--dataflash", log, "--out", rec.to_str().unwrap()]);
     assert!(r.ok, "{}", r.stderr);
     let model = dir.path().join("m.json");

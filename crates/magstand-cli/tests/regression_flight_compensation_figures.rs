@@ -10,10 +10,8 @@ mod common;
 fn a_flight_gets_flight_figures_and_the_rows_beyond_the_identified_range_are_named() {
     let dir = tempfile::tempdir().unwrap();
     let path = |n: &str| dir.path().join(n).to_str().unwrap().to_string();
-    let log = concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../../tests/data/real-logs/ardupilot-log171-quad.bin"
-    );
+    let log = common::test_data("real-logs", "ardupilot-log171-quad.bin");
+    let log = log.as_str();
     for (out, window) in [("all.csv", None), ("early.csv", Some("140"))] {
         let mut args = vec!["import", "--dataflash", log];
         let o = path(out);
@@ -56,13 +54,7 @@ fn a_flight_gets_flight_figures_and_the_rows_beyond_the_identified_range_are_nam
         r.stderr
     );
     // "field magnitude spread (sd) A -> B uT": the compensation narrows it.
-    let spread: Vec<f64> = r
-        .stdout
-        .split("spread (sd) ")
-        .nth(1)
-        .and_then(|s| s.split(" uT").next())
-        .map(|s| s.split(" -> ").filter_map(|v| v.parse().ok()).collect())
-        .unwrap_or_default();
+    let spread = common::flight_spread(&r.stdout);
     assert!(
         spread.len() == 2 && spread[1] < 0.8 * spread[0],
         "{}",

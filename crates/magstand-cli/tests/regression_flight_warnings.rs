@@ -9,10 +9,8 @@ mod common;
 fn log171_flip_is_left_out_and_its_turning_flight_needs_no_reference_field() {
     let dir = tempfile::tempdir().unwrap();
     let rec = dir.path().join("rec.csv");
-    let log = concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../../tests/data/real-logs/ardupilot-log171-quad.bin"
-    );
+    let log = common::test_data("real-logs", "ardupilot-log171-quad.bin");
+    let log = log.as_str();
     let r = common::magstand(&["import", "--dataflash", log, "--out", rec.to_str().unwrap()]);
     assert!(r.ok, "{}", r.stderr);
     let model = dir.path().join("m.json");

@@ -7,20 +7,7 @@
 mod common;
 
 fn real_log(name: &str) -> String {
-    format!(
-        "{}/../../tests/data/real-logs/{name}",
-        env!("CARGO_MANIFEST_DIR")
-    )
-}
-
-/// "spread (sd) A -> B uT" of compensate's flight line.
-fn spread(stdout: &str) -> Vec<f64> {
-    stdout
-        .split("spread (sd) ")
-        .nth(1)
-        .and_then(|s| s.split(" uT").next())
-        .map(|s| s.split(" -> ").filter_map(|v| v.parse().ok()).collect())
-        .unwrap_or_default()
+    common::test_data("real-logs", name)
 }
 
 #[test]
@@ -69,7 +56,7 @@ fn a_flight_from_take_off_fits_with_the_flight_fits_reference() {
     ]);
     assert!(r.ok, "{}", r.stderr);
     // The field's magnitude varies by 6.5 uT (sd) over the flight; most of it is the current.
-    let s = spread(&r.stdout);
+    let s = common::flight_spread(&r.stdout);
     assert!(s.len() == 2 && s[1] < 0.6 * s[0], "{}", r.stdout);
     // The same vehicle's rows are all inside what the model was identified on.
     assert!(!r.stderr.contains("beyond the input range"), "{}", r.stderr);

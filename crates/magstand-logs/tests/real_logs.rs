@@ -1,14 +1,10 @@
 //! The five public logs of tests/data/real-logs (provenance in its README): each imports with
 //! the documented choices, or fails with a message that names what is wrong.
-use std::path::PathBuf;
 
 use magstand_logs::import::{ImportOptions, SegmentKind, import_file};
 
-fn log(name: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../../tests/data/real-logs")
-        .join(name)
-}
+mod common;
+use common::real_log as log;
 
 fn max(v: &[f64]) -> f64 {
     v.iter().copied().fold(f64::MIN, f64::max)

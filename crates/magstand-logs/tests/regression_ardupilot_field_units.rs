@@ -12,6 +12,8 @@ use std::path::Path;
 use magstand_logs::import::{ImportOptions, import_bytes};
 use magstand_logs::log_writer::DataflashBuilder;
 
+mod common;
+
 const ROWS: usize = 120;
 
 /// The flight: 10 Hz, current ramping 1..31 A, a 4S pack sagging under load, and a compass
@@ -273,8 +275,7 @@ fn a_current_field_declared_in_another_unit_is_refused() {
 /// multiplier 1e-3 (int16 milligauss): the import must read its FMTU and find exactly that.
 #[test]
 fn the_copter_462_log_declares_the_units_the_import_assumes() {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../tests/data/real-logs/ardupilot-copter462-pixhawk4-first80k.bin");
+    let path = common::real_log("ardupilot-copter462-pixhawk4-first80k.bin");
     let bytes = std::fs::read(&path).unwrap();
     let log = magstand_logs::dataflash::read_bytes(&bytes, &path).unwrap();
     let mag = &log.field_units["MAG"]["MagX"];

@@ -4,15 +4,11 @@
 //! 88 s flight. pyulog skips such a message, and finds its way past unreadable bytes with the
 //! synchronisation messages PX4 writes about once a second. The import now does the same and
 //! reports what it skipped.
-use std::path::PathBuf;
 
 use magstand_logs::import::{ImportOptions, import_bytes, import_file};
 
-fn log(name: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../../tests/data/real-logs")
-        .join(name)
-}
+mod common;
+use common::real_log as log;
 
 #[test]
 fn the_bit_flipped_v6xrt_log_reads_to_its_end_as_pyulog_does() {

@@ -3,15 +3,11 @@
 //! `bat_a` column of zeros, and `fit --inputs current` would have fitted a disturbance against
 //! a constant. A supply channel that reads zero throughout is now left out with a note, so a
 //! current fit says the current is missing and the throttle is the input left.
-use std::path::PathBuf;
 
 use magstand_logs::import::{ImportOptions, import_file};
 
-fn log(name: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../../tests/data/real-logs")
-        .join(name)
-}
+mod common;
+use common::real_log as log;
 
 #[test]
 fn a_current_of_zero_throughout_is_not_measured() {

@@ -44,3 +44,24 @@ pub fn simulate_quick_tables(out: &str) {
     ]);
     assert!(r.ok, "{}", r.stderr);
 }
+
+/// The path of `name` in the repository's `tests/data/<folder>` (real logs, bad inputs).
+#[allow(dead_code)] // not every test file reads checked-in data
+pub fn test_data(folder: &str, name: &str) -> String {
+    format!(
+        "{}/../../tests/data/{folder}/{name}",
+        env!("CARGO_MANIFEST_DIR")
+    )
+}
+
+/// The "field magnitude spread (sd) A -> B uT" of `compensate`'s line for a flight, as
+/// [A, B]; empty when the line is not there.
+#[allow(dead_code)] // not every test file compensates a flight
+pub fn flight_spread(stdout: &str) -> Vec<f64> {
+    stdout
+        .split("spread (sd) ")
+        .nth(1)
+        .and_then(|s| s.split(" uT").next())
+        .map(|s| s.split(" -> ").filter_map(|v| v.parse().ok()).collect())
+        .unwrap_or_default()
+}
