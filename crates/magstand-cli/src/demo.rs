@@ -139,6 +139,7 @@ pub fn run(a: DemoArgs) -> Result<()> {
         }
     );
     let page = crate::report_cmd::write_report(
+        &[],
         &valid,
         &valid_path.display().to_string(),
         Some(&model),

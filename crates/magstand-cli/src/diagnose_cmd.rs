@@ -51,14 +51,6 @@ pub fn run(a: DiagnoseArgs) -> Result<()> {
     outputs.extend(a.augmented.as_deref());
     outputs.extend(a.model_out.as_deref());
     outputs.extend(page.as_deref());
-    let mut inputs: Vec<&std::path::Path> = vec![&a.recording];
-    let scenario_path = a
-        .scenario
-        .as_deref()
-        .filter(|s| !s.starts_with("builtin:"))
-        .map(PathBuf::from);
-    inputs.extend(scenario_path.as_deref());
-    files::refuse_overwriting_inputs(&inputs, &outputs)?;
     let config = DiagnoseConfig {
         significance: a.significance,
         ..Default::default()
@@ -69,6 +61,11 @@ pub fn run(a: DiagnoseArgs) -> Result<()> {
         None => Scenario::from_toml_str(DEFAULT_NOMINAL, "default nominal stand")
             .and_then(|s| s.check("default nominal stand", None))?,
     };
+    let mut inputs = vec![a.recording.clone()];
+    if let Some(s) = &a.scenario {
+        inputs.extend(files::scenario_inputs(s, &nominal));
+    }
+    files::refuse_overwriting_inputs(&inputs, &outputs)?;
     let rec = recording_csv::read(&a.recording)?;
     let name = a.recording.display().to_string();
     let pool = rayon::ThreadPoolBuilder::new()
@@ -98,7 +95,9 @@ pub fn run(a: DiagnoseArgs) -> Result<()> {
         let mut prov = crate::report_cmd::provenance();
         prov.push(("recording".into(), name.clone()));
         prov.push(("nominal scenario".into(), nominal.origin().into()));
+        let read: Vec<&std::path::Path> = inputs.iter().map(PathBuf::as_path).collect();
         wrote.push(crate::report_cmd::write_report(
+            &read,
             &rec,
             &name,
             None,

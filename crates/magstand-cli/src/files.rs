@@ -1,8 +1,14 @@
 //! File handling shared by the subcommands: output folders, and the rule that no output may
 //! overwrite an input.
+//!
+//! Each command lists its outputs and checks them against its inputs by canonical path before
+//! it writes anything ([`refuse_overwriting_inputs`]). Behind that, every write goes through
+//! `magstand_core::atomic_file`, which refuses any file this process has read, so an output
+//! the list missed still cannot replace an input.
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
+use magstand_sim::ValidScenario;
 
 /// Creates `dir` (and parents) if needed.
 pub fn ensure_dir(dir: &Path) -> Result<()> {
@@ -22,19 +28,56 @@ fn canonical(p: &Path) -> Option<PathBuf> {
     std::fs::canonicalize(p).ok()
 }
 
-/// Fails if any output path names the same file as any input path.
-pub fn refuse_overwriting_inputs(inputs: &[&Path], outputs: &[&Path]) -> Result<()> {
-    for o in outputs {
+/// Fails if any output path names the same file as any input path. An output that does not
+/// exist yet cannot be an input, so only existing files are compared.
+pub fn refuse_overwriting_inputs<I, O>(inputs: &[I], outputs: &[O]) -> Result<()>
+where
+    I: AsRef<Path>,
+    O: AsRef<Path>,
+{
+    let inputs: Vec<(&Path, PathBuf)> = inputs
+        .iter()
+        .filter_map(|i| Some((i.as_ref(), canonical(i.as_ref())?)))
+        .collect();
+    for (k, o) in outputs.iter().enumerate() {
+        let o = o.as_ref();
+        let absolute = std::path::absolute(o).ok();
+        if let Some(other) = outputs[..k]
+            .iter()
+            .find(|p| std::path::absolute(p.as_ref()).ok() == absolute)
+        {
+            bail!(
+                "output {} is named twice (also as {}): give each output its own path",
+                o.display(),
+                other.as_ref().display()
+            );
+        }
         let Some(co) = canonical(o) else { continue };
-        for i in inputs {
-            if canonical(i).as_ref() == Some(&co) {
-                bail!(
-                    "output {} is the input {}: refusing to overwrite an input",
-                    o.display(),
-                    i.display()
-                );
-            }
+        if let Some((i, _)) = inputs.iter().find(|(_, ci)| *ci == co) {
+            bail!(
+                "output {} is the input {}: refusing to overwrite an input (choose another output path)",
+                o.display(),
+                i.display()
+            );
         }
     }
     Ok(())
+}
+
+/// The files a scenario `spec` stands for: the scenario file (unless built in) and the
+/// recording a replay program reads.
+pub fn scenario_inputs(spec: &str, scenario: &ValidScenario) -> Vec<PathBuf> {
+    let mut inputs = scenario.input_files();
+    if !spec.starts_with("builtin:") {
+        inputs.push(PathBuf::from(spec));
+    }
+    inputs
+}
+
+/// The files of a Monte Carlo study folder that are read back (by `merge` and `report`).
+pub fn study_inputs(dir: &Path) -> Vec<PathBuf> {
+    ["runs.csv", "study.json"]
+        .iter()
+        .map(|n| dir.join(n))
+        .collect()
 }

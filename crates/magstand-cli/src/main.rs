@@ -60,6 +60,19 @@ fn main() -> ExitCode {
     unsafe {
         libc::signal(libc::SIGPIPE, libc::SIG_DFL);
     }
+    // Ctrl-C or SIGTERM in the middle of a write: remove the half-written temporaries and
+    // leave every target as it was. (SIGKILL cannot be caught; the next write of the same
+    // file removes a temporary whose process is gone.)
+    if let Err(e) = ctrlc::set_handler(|| {
+        magstand_core::atomic_file::remove_pending_temporaries();
+        std::process::exit(130);
+    }) {
+        eprintln!(
+            "warning: cannot handle Ctrl-C and SIGTERM ({e}); an interrupted write may leave a hidden .tmp file"
+        );
+    }
+    // No output may replace a file this run has read, under whatever path it is named.
+    magstand_core::input_file::protect_inputs();
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Simulate(a) => simulate_cmd::run(a),

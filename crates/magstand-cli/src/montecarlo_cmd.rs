@@ -107,10 +107,12 @@ fn study(a: StudyArgs) -> Result<()> {
         shard,
         identification_overrides: ident,
     };
+    let inputs = files::scenario_inputs(&spec, &scenario);
     let Some(sweep) = &a.sweep else {
         let valid = config(a.ident_overrides.clone()).check(&scenario)?;
-        let inputs = [Path::new(&spec)];
-        files::refuse_overwriting_inputs(&inputs, &[&out.join("runs.csv")])?;
+        let methods: Vec<&str> = valid.methods().iter().map(|m| m.id).collect();
+        let outputs = study_outputs(&out, &methods, a.json.as_deref());
+        files::refuse_overwriting_inputs(&inputs, &outputs)?;
         files::ensure_dir(&out)?;
         let bar = RunsBar::new("montecarlo", valid.run_indices().len());
         let result = run_study(&valid, a.threads.map(usize::from), &bar)?;
@@ -118,6 +120,12 @@ fn study(a: StudyArgs) -> Result<()> {
         return finish(&result, &out, a.json.as_deref());
     };
 
+    if let Some(j) = &a.json {
+        bail!(
+            "--json {} with --sweep: a sweep writes one SUMMARY.json per value, in the value's folder, and its table to sweep.csv; leave --json out",
+            j.display()
+        );
+    }
     if shard != Shard::ALL {
         bail!(
             "--sweep runs whole studies; to spread a sweep over machines, run one sharded study per value with --ident-set KEY=VALUE"
@@ -139,10 +147,17 @@ fn study(a: StudyArgs) -> Result<()> {
                 .with_context(|| format!("--sweep value {key}={v}"))
         })
         .collect::<Result<Vec<_>>>()?;
+    let folders = sweep_folders(key, &values)?;
+    let mut outputs = vec![out.join("sweep.csv")];
+    for (folder, valid) in folders.iter().zip(&studies) {
+        let methods: Vec<&str> = valid.methods().iter().map(|m| m.id).collect();
+        outputs.extend(study_outputs(&out.join(folder), &methods, None));
+    }
+    files::refuse_overwriting_inputs(&inputs, &outputs)?;
     files::ensure_dir(&out)?;
     let mut table = Vec::new();
-    for (v, valid) in values.iter().zip(&studies) {
-        let dir = out.join(format!("{}={v}", key.replace(['/', '\\'], "_")));
+    for ((v, valid), folder) in values.iter().zip(&studies).zip(&folders) {
+        let dir = out.join(folder);
         files::ensure_dir(&dir)?;
         let bar = RunsBar::new(&format!("{key}={v}"), valid.run_indices().len());
         let result = run_study(valid, a.threads.map(usize::from), &bar)?;
@@ -162,15 +177,65 @@ fn study(a: StudyArgs) -> Result<()> {
     Ok(())
 }
 
+/// The folder of each sweep value inside `--out`: `KEY=VALUE` with every character outside
+/// letters, digits and `.+-_=` replaced by `_`, so a value can never name a path elsewhere.
+fn sweep_folders(key: &str, values: &[&str]) -> Result<Vec<String>> {
+    let safe = |text: &str| -> String {
+        text.chars()
+            .map(|c| match c {
+                c if c.is_ascii_alphanumeric() || "+-_=.".contains(c) => c,
+                _ => '_',
+            })
+            .collect()
+    };
+    let mut folders: Vec<String> = Vec::new();
+    for v in values {
+        let folder = format!("{}={}", safe(key), safe(v));
+        if let Some(k) = folders.iter().position(|f| *f == folder) {
+            bail!(
+                "--sweep values `{}` and `{v}` would share the folder {folder}; give distinct values",
+                values[k]
+            );
+        }
+        folders.push(folder);
+    }
+    Ok(folders)
+}
+
+/// Every file a study writes into `out` (and `json`), for the check against its inputs.
+fn study_outputs(out: &Path, methods: &[&str], json: Option<&Path>) -> Vec<PathBuf> {
+    let mut outputs: Vec<PathBuf> = ["runs.csv", "study.json", "SUMMARY.json"]
+        .into_iter()
+        .chain([ERROR_FIGURE])
+        .map(|n| out.join(n))
+        .collect();
+    outputs.extend(methods.iter().map(|m| out.join(parameter_figure(m))));
+    outputs.extend(json.map(Path::to_path_buf));
+    outputs
+}
+
+const ERROR_FIGURE: &str = "error-vs-throttle.svg";
+
+fn parameter_figure(method: &str) -> String {
+    format!("parameter-errors-{method}.svg")
+}
+
 fn merge(m: MergeArgs) -> Result<()> {
     let shards = m
         .shards
         .iter()
         .map(|d| StudyResult::read(d).with_context(|| format!("shard {}", d.display())))
         .collect::<Result<Vec<_>>>()?;
-    let inputs: Vec<PathBuf> = m.shards.iter().map(|d| d.join("runs.csv")).collect();
-    let input_refs: Vec<&Path> = inputs.iter().map(PathBuf::as_path).collect();
-    files::refuse_overwriting_inputs(&input_refs, &[&m.out.join("runs.csv")])?;
+    let inputs: Vec<PathBuf> = m
+        .shards
+        .iter()
+        .flat_map(|d| files::study_inputs(d))
+        .collect();
+    let methods: Vec<&str> = shards
+        .first()
+        .map(|s| s.info.methods.iter().map(String::as_str).collect())
+        .unwrap_or_default();
+    files::refuse_overwriting_inputs(&inputs, &study_outputs(&m.out, &methods, m.json.as_deref()))?;
     let merged = magstand_study::merge(shards)?;
     files::ensure_dir(&m.out)?;
     finish(&merged, &m.out, m.json.as_deref())
@@ -209,13 +274,13 @@ fn finish(result: &StudyResult, out: &Path, json: Option<&Path>) -> Result<()> {
 /// Writes the study's figures as SVG files next to its tables; returns their file names.
 pub fn write_figures(summary: &Summary, result: &StudyResult, out: &Path) -> Result<Vec<String>> {
     let mut figures = vec![(
-        "error-vs-throttle.svg".to_string(),
+        ERROR_FIGURE.to_string(),
         magstand_report::montecarlo::error_against_throttle(summary)?,
     )];
     for m in &summary.methods {
         if !m.parameters.is_empty() {
             figures.push((
-                format!("parameter-errors-{}.svg", m.method),
+                parameter_figure(&m.method),
                 magstand_report::montecarlo::parameter_errors(
                     summary,
                     &result.outcomes,

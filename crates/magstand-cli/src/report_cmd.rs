@@ -44,8 +44,11 @@ pub fn provenance() -> Vec<(String, String)> {
     ]
 }
 
-/// Writes a report into `out` and returns the page's path.
+/// Writes a report into `out` and returns the page's path. No file it writes may be one of
+/// `inputs` (the study folder's files are added here).
+#[allow(clippy::too_many_arguments)]
 pub fn write_report(
+    files_read: &[&Path],
     rec: &Recording,
     recording_name: &str,
     model: Option<&Model>,
@@ -72,6 +75,10 @@ pub fn write_report(
         provenance,
     };
     let report = build(&inputs)?;
+    let mut read: Vec<PathBuf> = files_read.iter().map(|p| p.to_path_buf()).collect();
+    read.extend(study_dir.map(files::study_inputs).unwrap_or_default());
+    let outputs: Vec<PathBuf> = report.file_names().iter().map(|n| out.join(n)).collect();
+    files::refuse_overwriting_inputs(&read, &outputs)?;
     files::ensure_dir(out)?;
     Ok(report.write(out)?)
 }
@@ -85,8 +92,6 @@ pub fn run(a: ReportArgs) -> Result<()> {
     if let Some(d) = &a.diagnosis {
         inputs.push(d);
     }
-    let page = a.out.join("index.html");
-    files::refuse_overwriting_inputs(&inputs, &[&page])?;
     let rec = recording_csv::read(&a.recording)?;
     let model = a.model.as_deref().map(Model::load).transpose()?;
     let diagnosis = a.diagnosis.as_deref().map(Diagnosis::load).transpose()?;
@@ -96,6 +101,7 @@ pub fn run(a: ReportArgs) -> Result<()> {
         prov.push(("model".into(), format!("{} ({})", p.display(), m.method)));
     }
     let page = write_report(
+        &inputs,
         &rec,
         &a.recording.display().to_string(),
         model.as_ref(),

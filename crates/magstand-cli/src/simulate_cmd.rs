@@ -7,7 +7,7 @@ use clap::Args;
 use crate::files;
 use crate::progress::SimulationBar;
 use magstand_core::{atomic_file, recording_csv};
-use magstand_logs::log_writer::{LogWriteOptions, write_dataflash, write_ulog};
+use magstand_logs::log_writer::{LogWriteOptions, stage_dataflash, stage_ulog};
 use magstand_sim::{Scenario, simulate_observed};
 
 /// Arguments of `magstand simulate`.
@@ -65,8 +65,17 @@ fn run_into(a: &SimulateArgs) -> Result<()> {
     files::ensure_dir(&a.out)?;
     let rec_path = a.out.join("recording.csv");
     let scn_path = a.out.join("scenario.toml");
-    let input = PathBuf::from(&a.scenario);
-    files::refuse_overwriting_inputs(&[&input], &[&rec_path, &scn_path])?;
+    let log_paths: Vec<(PathBuf, bool)> = if a.logs {
+        vec![
+            (a.out.join("recording.ulg"), true),
+            (a.out.join("recording.bin"), false),
+        ]
+    } else {
+        Vec::new()
+    };
+    let mut outputs = vec![rec_path.clone(), scn_path.clone()];
+    outputs.extend(log_paths.iter().map(|(p, _)| p.clone()));
+    files::refuse_overwriting_inputs(&files::scenario_inputs(&a.scenario, &scenario), &outputs)?;
     let rec = simulate_observed(&scenario, seed, &mut SimulationBar::new("simulate"));
     let resolved = format!(
         "# Resolved scenario written by magstand {} from {}; repeat with:\n#   magstand simulate --scenario {} --seed {seed} --out DIR\nseed = {seed}\n{}",
@@ -75,28 +84,30 @@ fn run_into(a: &SimulateArgs) -> Result<()> {
         scn_path.display(),
         strip_seed(&scenario.to_toml()),
     );
-    recording_csv::write(&rec, &rec_path)?;
-    atomic_file::write_bytes(&scn_path, resolved.as_bytes())?;
-    let mut logs = Vec::new();
-    if a.logs {
-        let opts = LogWriteOptions {
-            // A stand turned by the gimbal stands in for a flight.
-            landed: !scenario.params().motion.is_on(),
-            ..LogWriteOptions::default()
-        };
-        for (name, ulog) in [("recording.ulg", true), ("recording.bin", false)] {
-            let path = a.out.join(name);
-            files::refuse_overwriting_inputs(&[&input], &[&path])?;
-            if ulog {
-                write_ulog(&rec, &path, &opts)?;
-            } else {
-                write_dataflash(&rec, &path, &opts)?;
-            }
-            logs.push(path);
-        }
+    // Every file is written in full before any is renamed into place, so a failure leaves
+    // the folder as it was. The renames then go scenario.toml, the logs, recording.csv: a run
+    // stopped between two renames never leaves a new recording beside an older scenario.
+    let scenario_file = atomic_file::stage_bytes(&scn_path, resolved.as_bytes())?;
+    let opts = LogWriteOptions {
+        // A stand turned by the gimbal stands in for a flight.
+        landed: !scenario.params().motion.is_on(),
+        ..LogWriteOptions::default()
+    };
+    let logs = log_paths
+        .iter()
+        .map(|(path, ulog)| match ulog {
+            true => stage_ulog(&rec, path, &opts),
+            false => stage_dataflash(&rec, path, &opts),
+        })
+        .collect::<Result<Vec<_>, _>>()?;
+    let recording = recording_csv::stage(&rec, &rec_path)?;
+    scenario_file.commit()?;
+    for log in logs {
+        log.commit()?;
     }
+    recording.commit()?;
     // Files first, then the terminal (a reader that closes stdout early must not cost one).
-    for path in logs {
+    for (path, _) in &log_paths {
         println!("wrote {}", path.display());
     }
     println!(

@@ -10,8 +10,47 @@
 //! let e = input_file::read_to_string(std::path::Path::new("/"), 1024).unwrap_err();
 //! assert!(e.to_string().contains("is a directory"));
 //! ```
+use std::collections::HashSet;
 use std::io::{self, Read};
-use std::path::Path;
+use std::path::{Path, PathBuf};
+use std::sync::Mutex;
+use std::sync::atomic::{AtomicBool, Ordering};
+
+/// Whether files opened here are remembered as inputs (see [`protect_inputs`]).
+static PROTECTING: AtomicBool = AtomicBool::new(false);
+/// The canonical paths of the inputs opened so far.
+static INPUTS: Mutex<Option<HashSet<PathBuf>>> = Mutex::new(None);
+
+/// From now on, every file this process opens through [`open`] is an input that
+/// [`crate::atomic_file`] refuses to replace, under whatever path an output names it.
+///
+/// A program turns this on once at start (magstand's command-line tool does); libraries leave
+/// it off, so a program that reads a file and then deliberately rewrites it is not hindered.
+pub fn protect_inputs() {
+    PROTECTING.store(true, Ordering::SeqCst);
+}
+
+fn remember(path: &Path) {
+    if PROTECTING.load(Ordering::SeqCst)
+        && let Ok(canonical) = std::fs::canonicalize(path)
+    {
+        INPUTS
+            .lock()
+            .unwrap_or_else(|p| p.into_inner())
+            .get_or_insert_with(HashSet::new)
+            .insert(canonical);
+    }
+}
+
+/// Whether `canonical` (a canonical path) is an input this process has opened while
+/// [`protect_inputs`] was on.
+pub fn is_protected(canonical: &Path) -> bool {
+    INPUTS
+        .lock()
+        .unwrap_or_else(|p| p.into_inner())
+        .as_ref()
+        .is_some_and(|set| set.contains(canonical))
+}
 
 /// Largest recording CSV read, bytes (2 GiB: tens of millions of rows).
 pub const MAX_RECORDING_BYTES: u64 = 2 << 30;
@@ -38,7 +77,9 @@ pub fn open(path: &Path, max_bytes: u64) -> io::Result<std::fs::File> {
     if meta.len() > max_bytes {
         return Err(too_large(meta.len(), max_bytes));
     }
-    std::fs::File::open(path)
+    let file = std::fs::File::open(path)?;
+    remember(path);
+    Ok(file)
 }
 
 fn too_large(len: u64, max_bytes: u64) -> io::Error {

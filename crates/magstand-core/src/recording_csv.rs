@@ -395,10 +395,10 @@ pub fn header(rec: &Recording) -> Vec<String> {
 pub fn write_to(rec: &Recording, out: impl Write, origin: &Path) -> Result<(), CoreError> {
     rec.check()?;
     let mut w = csv::WriterBuilder::new().from_writer(out);
-    let io = |e: csv::Error| CoreError::Csv {
-        path: origin.to_path_buf(),
-        row: 0,
-        message: e.to_string(),
+    // A failed write is the file system's (a full disk, a lost mount), never the CSV's: say so.
+    let io = |e: csv::Error| match e.into_kind() {
+        csv::ErrorKind::Io(e) => CoreError::io(origin, e),
+        other => CoreError::io(origin, std::io::Error::other(format!("{other:?}"))),
     };
     let names = header(rec);
     // What is written must read back: every number finite and within its column's limit.
@@ -457,8 +457,14 @@ fn push3(values: &mut Vec<(f64, usize)>, v: &Vec3, decimals: usize) {
 
 /// Writes a recording to a file atomically: the file appears complete or not at all.
 pub fn write(rec: &Recording, path: impl AsRef<Path>) -> Result<(), CoreError> {
+    stage(rec, path)?.commit()
+}
+
+/// Writes a recording beside `path`, staged: nothing at `path` changes until
+/// [`atomic_file::Staged::commit`] (for files that must change together).
+pub fn stage(rec: &Recording, path: impl AsRef<Path>) -> Result<atomic_file::Staged, CoreError> {
     let path: PathBuf = path.as_ref().to_path_buf();
-    atomic_file::write_with(&path, |w| write_to(rec, w, &path))
+    atomic_file::stage_with(&path, |w| write_to(rec, w, &path))
 }
 
 /// Formats a number the way [`write`] formats extra numeric columns (6 decimals, no -0).
@@ -569,6 +575,25 @@ mod tests {
             "t_s,thr,mag_x_ut,mag_y_ut,mag_z_ut,true_dist_x_ut,true_dist_y_ut,true_dist_z_ut\n0,0,1,2,3,0,0,0\n",
         );
         assert!(e.contains("true_field_x_ut"), "{e}");
+    }
+
+    /// Regression: a full disk was reported as "row 0: malformed CSV", which sends a user
+    /// looking for a bad cell. `/dev/full` fails every write with ENOSPC.
+    #[test]
+    #[cfg(target_os = "linux")]
+    fn a_full_disk_is_named_as_such() {
+        let rec = read_str(GOOD, "r.csv").unwrap();
+        let full = std::fs::OpenOptions::new()
+            .write(true)
+            .open("/dev/full")
+            .unwrap();
+        let e = write_to(&rec, full, Path::new("out.csv"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("out.csv") && e.contains("No space left") && !e.contains("malformed"),
+            "{e}"
+        );
     }
 
     #[test]

@@ -7,7 +7,8 @@
 //! attitude and states at the same instants, on a clock that starts at `t_s`.
 use std::path::Path;
 
-use magstand_core::{Recording, atomic_file};
+use magstand_core::Recording;
+use magstand_core::atomic_file::{self, Staged};
 
 use crate::LogsError;
 
@@ -427,8 +428,18 @@ pub fn dataflash_bytes(rec: &Recording, opts: &LogWriteOptions) -> Vec<u8> {
 
 /// Writes the recording as a ULog file, atomically.
 pub fn write_ulog(rec: &Recording, path: &Path, opts: &LogWriteOptions) -> Result<(), LogsError> {
+    Ok(stage_ulog(rec, path, opts)?.commit()?)
+}
+
+/// Writes the recording as a ULog beside `path`, staged: nothing at `path` changes until
+/// [`Staged::commit`].
+pub fn stage_ulog(
+    rec: &Recording,
+    path: &Path,
+    opts: &LogWriteOptions,
+) -> Result<Staged, LogsError> {
     check(rec, path)?;
-    write(path, &ulog_bytes(rec, opts))
+    Ok(atomic_file::stage_bytes(path, &ulog_bytes(rec, opts))?)
 }
 
 /// Writes the recording as a DataFlash file, atomically.
@@ -437,10 +448,16 @@ pub fn write_dataflash(
     path: &Path,
     opts: &LogWriteOptions,
 ) -> Result<(), LogsError> {
-    check(rec, path)?;
-    write(path, &dataflash_bytes(rec, opts))
+    Ok(stage_dataflash(rec, path, opts)?.commit()?)
 }
 
-fn write(path: &Path, bytes: &[u8]) -> Result<(), LogsError> {
-    Ok(atomic_file::write_bytes(path, bytes)?)
+/// Writes the recording as a DataFlash file beside `path`, staged: nothing at `path` changes
+/// until [`Staged::commit`].
+pub fn stage_dataflash(
+    rec: &Recording,
+    path: &Path,
+    opts: &LogWriteOptions,
+) -> Result<Staged, LogsError> {
+    check(rec, path)?;
+    Ok(atomic_file::stage_bytes(path, &dataflash_bytes(rec, opts))?)
 }

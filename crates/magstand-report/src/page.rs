@@ -17,6 +17,13 @@ pub struct Figure {
     pub svg: String,
 }
 
+impl Figure {
+    /// The name of the figure's standalone file, `NAME.svg`.
+    pub fn file_name(&self) -> String {
+        format!("{}.svg", self.name)
+    }
+}
+
 /// A section of the page.
 #[derive(Debug, Clone, Default)]
 pub struct Section {
@@ -29,6 +36,9 @@ pub struct Section {
     /// Figures.
     pub figures: Vec<Figure>,
 }
+
+/// The file name of the page [`Report::write`] writes.
+pub const PAGE: &str = "index.html";
 
 impl Section {
     /// An empty section titled `title`.
@@ -129,15 +139,24 @@ impl Report {
         h + "</body></html>\n"
     }
 
+    /// The names of the files [`Report::write`] writes: one SVG per figure and the page.
+    pub fn file_names(&self) -> Vec<String> {
+        self.sections
+            .iter()
+            .flat_map(|s| s.figures.iter().map(Figure::file_name))
+            .chain([PAGE.to_string()])
+            .collect()
+    }
+
     /// Writes `dir/index.html` and every figure as `dir/NAME.svg` (each atomically); `dir` must
     /// exist. Returns the page's path.
     pub fn write(&self, dir: &Path) -> Result<std::path::PathBuf, ReportError> {
         for s in &self.sections {
             for f in &s.figures {
-                atomic_file::write_bytes(&dir.join(format!("{}.svg", f.name)), f.svg.as_bytes())?;
+                atomic_file::write_bytes(&dir.join(f.file_name()), f.svg.as_bytes())?;
             }
         }
-        let page = dir.join("index.html");
+        let page = dir.join(PAGE);
         atomic_file::write_bytes(&page, self.to_html().as_bytes())?;
         Ok(page)
     }

@@ -177,6 +177,14 @@ impl ValidScenario {
             .map(|(t, c)| (t.as_slice(), c.as_slice()))
     }
 
+    /// The files this scenario read besides itself: a replay program's recording.
+    pub fn input_files(&self) -> Vec<PathBuf> {
+        match &self.scenario.program {
+            ProgramParams::Replay { file } => vec![PathBuf::from(file)],
+            _ => Vec::new(),
+        }
+    }
+
     /// The fully resolved scenario as TOML, so a run can be repeated exactly. A replay
     /// program's file is written as the absolute path it was loaded from.
     pub fn to_toml(&self) -> String {
@@ -228,13 +236,38 @@ impl Scenario {
         if overrides.is_empty() {
             return Self::from_toml_str(text, origin);
         }
-        let mut table: toml::Table = text.parse().map_err(|e| parse_error(origin, e))?;
-        for o in overrides {
-            apply_override(&mut table, o)?;
+        let original: toml::Table = text.parse().map_err(|e| parse_error(origin, e))?;
+        // The scenario as written must parse on its own, so that an error found after the
+        // overrides is theirs.
+        Self::from_toml_str(text, origin)?;
+        let merged = |skip: Option<usize>| -> Result<toml::Table, SimError> {
+            let mut table = original.clone();
+            for (k, o) in overrides.iter().enumerate() {
+                if Some(k) != skip {
+                    apply_override(&mut table, o)?;
+                }
+            }
+            Ok(table)
+        };
+        let error = match merged(None)?.try_into::<Self>() {
+            Ok(s) => return Ok(s),
+            Err(e) => e,
+        };
+        // Name the `--set` whose removal makes the scenario parse, rather than a line of the
+        // merged TOML the user never wrote. (Overrides that only parse together, such as a
+        // new `supply.kind` with its keys, are tried as a whole above.)
+        for (k, o) in overrides.iter().enumerate() {
+            if merged(Some(k))?.try_into::<Self>().is_ok() {
+                return Err(SimError::Override {
+                    text: o.clone(),
+                    message: error.message().trim_end().to_string(),
+                });
+            }
         }
-        let with = format!("{origin} (with --set overrides)");
-        let text = toml::to_string(&table).map_err(|e| parse_error(&with, e))?;
-        Self::from_toml_str(&text, &with)
+        Err(parse_error(
+            &format!("{origin} (with --set {})", overrides.join(", --set ")),
+            error.message(),
+        ))
     }
 
     /// Reads a scenario file, applies overrides and checks it. Relative paths inside (a replay

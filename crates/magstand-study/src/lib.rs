@@ -147,6 +147,33 @@ impl StudyResult {
         let info = StudyInfo::read(&dir.join("study.json"))?;
         let path = dir.join("runs.csv");
         let outcomes = runs_csv::read(&path)?;
+        let malformed = |message: String| StudyError::Malformed {
+            path: path.clone(),
+            message,
+        };
+        // Each (run, method) exactly once: a repeated row would count twice in the summary.
+        let mut seen = std::collections::HashMap::new();
+        for (row, o) in outcomes.iter().enumerate() {
+            if let Some(first) = seen.insert((o.run, o.method.as_str()), row + 1) {
+                return Err(malformed(format!(
+                    "row {}: run {} method `{}` repeats row {first}; each run has one row per method",
+                    row + 1,
+                    o.run,
+                    o.method
+                )));
+            }
+        }
+        for run in info.run_range[0]..info.run_range[1] {
+            if let Some(m) = info
+                .methods
+                .iter()
+                .find(|m| !seen.contains_key(&(run, m.as_str())))
+            {
+                return Err(malformed(format!(
+                    "run {run} has no row for method `{m}`; each run has one row per method (did the shard finish?)"
+                )));
+            }
+        }
         for o in &outcomes {
             let in_range = (info.run_range[0]..info.run_range[1]).contains(&o.run);
             if !in_range || !info.methods.contains(&o.method) {
