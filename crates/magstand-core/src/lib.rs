@@ -9,6 +9,9 @@
 //!   and by the identification crate.
 //! * [`interpolation`]: a sampled column read between its samples, held at its ends.
 //! * [`atomic_file`]: write-then-rename output so that no half-written file is ever left behind.
+//! * [`input_file`]: reading a user's file with its cost bounded by a size limit.
+//! * `file_fuzzing` (feature `file-fuzzing`): the hostile values the file-format property
+//!   tests of every crate feed their readers.
 //!
 //! # Example
 //! ```
@@ -24,6 +27,8 @@
 
 pub mod atomic_file;
 mod error;
+#[cfg(feature = "file-fuzzing")]
+pub mod file_fuzzing;
 pub mod input_file;
 pub mod interpolation;
 pub mod rbf;

@@ -406,9 +406,10 @@ pub fn write_to(rec: &Recording, out: impl Write, origin: &Path) -> Result<(), C
     w.write_record(&names).map_err(io)?;
     let mut values: Vec<(f64, usize)> = Vec::new();
     let mut cells: Vec<String> = Vec::new();
+    let exact_time = needs_exact_time(&rec.t_s);
     for r in 0..rec.len() {
         values.clear();
-        values.push((rec.t_s[r], 6));
+        values.push((rec.t_s[r], if exact_time { EXACT } else { 6 }));
         values.extend(rec.thr.iter().map(|m| (m[r], 6)));
         push3(&mut values, &rec.mag_ut[r], 4);
         for c in [&rec.bat_v, &rec.bat_a, &rec.temp_c].into_iter().flatten() {
@@ -442,13 +443,28 @@ pub fn write_to(rec: &Recording, out: impl Write, origin: &Path) -> Result<(), C
                 });
             }
             // `+ 0.0` turns -0.0 into 0.0 so that signs of zero never differ between runs.
-            cells.push(format!("{:.*}", decimals, v + 0.0));
+            cells.push(match decimals {
+                EXACT => format!("{}", v + 0.0),
+                _ => format!("{:.*}", decimals, v + 0.0),
+            });
         }
         cells.extend(rec.extra.iter().map(|(_, c)| c[r].clone()));
         w.write_record(&cells).map_err(io)?;
     }
     w.flush().map_err(|e| CoreError::io(origin, e))?;
     Ok(())
+}
+
+/// Marks a cell written with the shortest text that reads back as exactly the same number.
+const EXACT: usize = usize::MAX;
+
+/// Whether two times of `t_s` would print alike at 6 decimals (samples less than a
+/// microsecond apart): the whole column is then written exactly, so that what is written
+/// reads back with time still strictly increasing.
+fn needs_exact_time(t_s: &[f64]) -> bool {
+    let six = |t: f64| format!("{:.6}", t + 0.0).parse::<f64>().unwrap_or(t);
+    t_s.windows(2)
+        .any(|w| w[1] - w[0] < 2e-6 && six(w[1]) <= six(w[0]))
 }
 
 fn push3(values: &mut Vec<(f64, usize)>, v: &Vec3, decimals: usize) {
@@ -610,10 +626,91 @@ mod tests {
         );
     }
 
+    /// Regression, found by the property test below: times less than a microsecond apart
+    /// were written at 6 decimals as the same time, so the file written could not be read.
+    #[test]
+    fn sub_microsecond_times_are_written_exactly_and_read_back() {
+        let text =
+            "t_s,thr,mag_x_ut,mag_y_ut,mag_z_ut\n0.0,0,1,2,3\n0.0000001,0,1,2,3\n1.5,0,1,2,3\n";
+        let rec = read_str(text, "fast.csv").unwrap();
+        let mut out = Vec::new();
+        write_to(&rec, &mut out, Path::new("fast.csv")).unwrap();
+        let again = read_str(std::str::from_utf8(&out).unwrap(), "fast.csv").unwrap();
+        assert_eq!(again.t_s, rec.t_s);
+        // An ordinary clock keeps its fixed 6 decimals.
+        let mut out = Vec::new();
+        write_to(
+            &read_str(GOOD, "r.csv").unwrap(),
+            &mut out,
+            Path::new("r.csv"),
+        )
+        .unwrap();
+        let text = String::from_utf8(out).unwrap();
+        assert!(text.contains("\n0.500000,"), "{text}");
+    }
+
+    /// One cell of a valid recording replaced by hostile text.
+    fn hostile_cell() -> impl proptest::strategy::Strategy<Value = String> {
+        use proptest::prelude::*;
+        prop_oneof![
+            Just("1e308".to_string()),
+            Just("-1e308".to_string()),
+            Just("1e-320".to_string()),
+            Just("NaN".to_string()),
+            Just("inf".to_string()),
+            Just("".to_string()),
+            Just("1e6".to_string()),
+            Just("-0".to_string()),
+            Just("0x10".to_string()),
+            any::<f64>().prop_map(|x| x.to_string()),
+            // Printable text without `"` and `,`, which change the row's structure rather
+            // than a cell (arbitrary_text_never_panics covers those).
+            "[ !#-+\\--~]{0,12}",
+        ]
+    }
+
     proptest::proptest! {
         #[test]
         fn arbitrary_text_never_panics(s in "(?s).{0,300}") {
             let _ = read_str(&s, "fuzz.csv");
+        }
+
+        /// A recording with one hostile cell is refused with the row and column named, or
+        /// read with every number finite and written back unchanged.
+        #[test]
+        fn one_hostile_cell_is_refused_by_name_or_round_trips(
+            row in 1usize..3,
+            column in 0usize..7,
+            cell in hostile_cell(),
+        ) {
+            let mut lines: Vec<Vec<String>> = GOOD
+                .lines()
+                .map(|l| l.split(',').map(str::to_string).collect())
+                .collect();
+            let name = lines[0][column].clone();
+            lines[row][column] = cell.clone();
+            let text: String = lines.iter().map(|l| l.join(",") + "\n").collect();
+            match read_str(&text, "hostile.csv") {
+                Err(e) => {
+                    let e = e.to_string();
+                    proptest::prop_assert!(
+                        e.contains("hostile.csv") && e.contains(&name),
+                        "{cell:?} in `{name}` row {row}: {e}"
+                    );
+                }
+                Ok(rec) => {
+                    let numbers = rec.t_s.iter().chain(rec.thr.iter().flatten())
+                        .chain(rec.mag_ut.iter().flat_map(|v| v.iter()))
+                        .chain(rec.bat_v.iter().flatten());
+                    for x in numbers {
+                        proptest::prop_assert!(x.is_finite(), "{cell:?} read as {x}");
+                    }
+                    let mut out = Vec::new();
+                    write_to(&rec, &mut out, Path::new("again.csv")).unwrap();
+                    let again = read_str(std::str::from_utf8(&out).unwrap(), "again.csv").unwrap();
+                    proptest::prop_assert_eq!(again.len(), rec.len());
+                }
+            }
         }
     }
 }

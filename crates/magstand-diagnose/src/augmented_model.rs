@@ -90,6 +90,9 @@ pub struct AugmentedModel {
     pub noise: Option<NoiseLaw>,
 }
 
+/// Largest noise-law coefficient or floor a model file may carry, µT² ((1e5 µT)²).
+pub const MAX_VARIANCE_UT2: f64 = 1e10;
+
 /// Residual noise variance growing with the load: `max(c0 + c1 q + c2 q², floor)` per axis.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct NoiseLaw {
@@ -112,11 +115,20 @@ impl NoiseLaw {
         Vec3::from(var.map(f64::sqrt))
     }
 
+    /// Within the bounds that keep every predicted sd finite: a motor current of at most
+    /// 1e5 A (the recording's limit) over a full load of at least 1 µA is q ≤ 1e11, and
+    /// coefficients of at most (1e5 µT)² then give at most 1e32 µT².
     fn is_valid(&self) -> bool {
-        self.full_load_a.is_finite()
-            && self.full_load_a > 0.0
-            && self.variance_ut2.iter().flatten().all(|c| c.is_finite())
-            && self.floor_ut2.iter().all(|f| f.is_finite() && *f > 0.0)
+        (1e-6..=1e5).contains(&self.full_load_a)
+            && self
+                .variance_ut2
+                .iter()
+                .flatten()
+                .all(|c| c.abs() <= MAX_VARIANCE_UT2)
+            && self
+                .floor_ut2
+                .iter()
+                .all(|f| *f > 0.0 && *f <= MAX_VARIANCE_UT2)
     }
 }
 
@@ -139,6 +151,13 @@ impl AugmentedModel {
         let m: AugmentedModel = versioned_json::parse(text, path, FORMAT, VERSION, |m: &Self| {
             (m.format.as_str(), m.version)
         })?;
+        m.validate(path)?;
+        Ok(m)
+    }
+
+    /// The rules every model file follows, checked where it is read and where it is written.
+    fn validate(&self, path: &Path) -> Result<(), DiagnoseError> {
+        let m = self;
         if m.columns.len() != m.coefficients.len()
             || m.coefficients.iter().flatten().any(|c| !c.is_finite())
         {
@@ -177,14 +196,18 @@ impl AugmentedModel {
         if m.noise.as_ref().is_some_and(|n| !n.is_valid()) {
             return Err(versioned_json::malformed(
                 path,
-                "`noise` expects finite variance coefficients, positive floors and a positive full_load_a".into(),
+                format!(
+                    "`noise` expects variance coefficients of magnitude at most {MAX_VARIANCE_UT2:e} µT², floors in (0, {MAX_VARIANCE_UT2:e}] µT² and full_load_a in [1e-6, 1e5] A"
+                ),
             ));
         }
-        Ok(m)
+        Ok(())
     }
 
-    /// Writes the model as pretty JSON, atomically.
+    /// Writes the model as pretty JSON, atomically; never a file [`AugmentedModel::load`]
+    /// would refuse.
     pub fn save(&self, path: &Path) -> Result<(), DiagnoseError> {
+        self.validate(path)?;
         versioned_json::write(self, path)
     }
 
