@@ -86,11 +86,15 @@ impl Checker<'_> {
     }
 
     /// Every component must be finite.
-    pub fn finite3(&self, key: &str, v: [f64; 3]) -> Result<(), SimError> {
-        if v.iter().all(|x| x.is_finite()) {
+    pub fn within3(&self, key: &str, v: [f64; 3], max_abs: f64) -> Result<(), SimError> {
+        if v.iter().all(|x| x.is_finite() && x.abs() <= max_abs) {
             Ok(())
         } else {
-            Err(self.fail(key, format!("{v:?}"), "three finite numbers"))
+            Err(self.fail(
+                key,
+                format!("{v:?}"),
+                &format!("three finite numbers of magnitude at most {max_abs:e}"),
+            ))
         }
     }
 }

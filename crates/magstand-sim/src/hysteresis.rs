@@ -32,7 +32,11 @@ impl Default for HysteresisParams {
 impl HysteresisParams {
     pub(crate) fn check(&self, c: &Checker) -> Result<(), SimError> {
         c.range("hysteresis.play_a", self.play_a, 0.0, 1000.0)?;
-        c.finite3("hysteresis.gain_ut_per_a", self.gain_ut_per_a)
+        c.within3(
+            "hysteresis.gain_ut_per_a",
+            self.gain_ut_per_a,
+            crate::MAX_GAIN_UT_PER_A,
+        )
     }
 }
 

@@ -28,7 +28,11 @@ impl Default for InterferenceParams {
 
 impl InterferenceParams {
     pub(crate) fn check(&self, c: &Checker) -> Result<(), SimError> {
-        c.finite3("interference.amplitude_ut", self.amplitude_ut)?;
+        c.within3(
+            "interference.amplitude_ut",
+            self.amplitude_ut,
+            crate::MAX_FIELD_UT,
+        )?;
         c.range("interference.period_s", self.period_s, 1e-3, 1e6)
     }
 

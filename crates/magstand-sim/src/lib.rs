@@ -63,6 +63,15 @@ pub mod variation;
 pub mod wiring;
 
 pub use error::SimError;
+
+/// Largest field a scenario may state (a hard-iron offset, an interference amplitude), µT:
+/// ten thousand µT is two hundred Earth fields, beyond any magnetometer's range.
+pub const MAX_FIELD_UT: f64 = 1e4;
+/// Largest field per ampere or per degree a scenario may state (wiring, hysteresis and
+/// thermal gains), µT/A or µT/°C.
+pub const MAX_GAIN_UT_PER_A: f64 = 1e3;
+/// Largest distance in a stand's geometry (sensor position, wire ends, loops), m.
+pub const MAX_DISTANCE_M: f64 = 10.0;
 pub use scenario::{Scenario, ValidScenario};
 pub use simulate::{Observer, Silent, simulate, simulate_observed};
 

@@ -83,7 +83,11 @@ impl Default for MagnetometerParams {
 
 impl MagnetometerParams {
     pub(crate) fn check(&self, c: &Checker, physics_hz: f64) -> Result<(), SimError> {
-        c.finite3("magnetometer.position_m", self.position_m)?;
+        c.within3(
+            "magnetometer.position_m",
+            self.position_m,
+            crate::MAX_DISTANCE_M,
+        )?;
         c.range("magnetometer.odr_hz", self.odr_hz, 1e-3, physics_hz)
             .map_err(|_| {
                 c.fail(
@@ -112,11 +116,17 @@ impl MagnetometerParams {
                     180.0,
                 )?;
             }
-            EarthField::Vector { ned_ut } => c.finite3("magnetometer.earth.ned_ut", ned_ut)?,
+            EarthField::Vector { ned_ut } => {
+                c.within3("magnetometer.earth.ned_ut", ned_ut, 1000.0)?
+            }
         }
-        c.finite3("magnetometer.hard_iron_ut", self.hard_iron_ut)?;
+        c.within3(
+            "magnetometer.hard_iron_ut",
+            self.hard_iron_ut,
+            crate::MAX_FIELD_UT,
+        )?;
         for (k, row) in self.soft_iron.iter().enumerate() {
-            c.finite3(&format!("magnetometer.soft_iron[{k}]"), *row)?;
+            c.within3(&format!("magnetometer.soft_iron[{k}]"), *row, 100.0)?;
         }
         if self.soft_iron_matrix().determinant().abs() < 1e-6 {
             return Err(c.fail(
@@ -131,7 +141,12 @@ impl MagnetometerParams {
             0.0,
             100.0,
         )?;
-        c.positive("magnetometer.range_ut", self.range_ut)
+        c.range(
+            "magnetometer.range_ut",
+            self.range_ut,
+            1e-3,
+            crate::MAX_FIELD_UT * 10.0,
+        )
     }
 
     /// Soft-iron matrix.

@@ -42,7 +42,11 @@ impl ThermalParams {
         c.range("thermal.ambient_c", self.ambient_c, -60.0, 100.0)?;
         c.positive("thermal.tau_s", self.tau_s)?;
         c.range("thermal.rise_c_per_w", self.rise_c_per_w, 0.0, 10.0)?;
-        c.finite3("thermal.offset_ut_per_c", self.offset_ut_per_c)
+        c.within3(
+            "thermal.offset_ut_per_c",
+            self.offset_ut_per_c,
+            crate::MAX_GAIN_UT_PER_A,
+        )
     }
 
     /// Offset at temperature `temp_c`, µT (zero when disabled).

@@ -261,8 +261,8 @@ impl WiringParams {
         for (k, s) in self.segment.iter().enumerate() {
             let key = format!("wiring.segment[{k}]");
             carrier_ok(&format!("{key}.carries"), s.carries)?;
-            c.finite3(&format!("{key}.start_m"), s.start_m)?;
-            c.finite3(&format!("{key}.end_m"), s.end_m)?;
+            c.within3(&format!("{key}.start_m"), s.start_m, crate::MAX_DISTANCE_M)?;
+            c.within3(&format!("{key}.end_m"), s.end_m, crate::MAX_DISTANCE_M)?;
             c.range(&format!("{key}.scale"), s.scale, -100.0, 100.0)?;
             if s.start_m == s.end_m {
                 return Err(c.fail(
@@ -288,13 +288,21 @@ impl WiringParams {
             ));
         }
         for (k, g) in self.extra_motor_ut_per_a.iter().enumerate() {
-            c.finite3(&format!("wiring.extra_motor_ut_per_a[{k}]"), *g)?;
+            c.within3(
+                &format!("wiring.extra_motor_ut_per_a[{k}]"),
+                *g,
+                crate::MAX_GAIN_UT_PER_A,
+            )?;
         }
         for (k, l) in self.loops.iter().enumerate() {
             let key = format!("wiring.loop[{k}]");
             carrier_ok(&format!("{key}.carries"), l.carries)?;
-            c.finite3(&format!("{key}.center_m"), l.center_m)?;
-            c.finite3(&format!("{key}.normal"), l.normal)?;
+            c.within3(
+                &format!("{key}.center_m"),
+                l.center_m,
+                crate::MAX_DISTANCE_M,
+            )?;
+            c.within3(&format!("{key}.normal"), l.normal, 1e3)?;
             if Vec3::from(l.normal).norm() < 1e-9 {
                 return Err(c.fail(
                     &format!("{key}.normal"),

@@ -21,6 +21,11 @@ const SCALARS: [&str; 7] = [
     "heading_after_deg",
 ];
 
+/// Largest magnitude of a figure in `runs.csv` (errors in µT or degrees, ratios, parameter
+/// errors): far beyond any real result, and small enough that the summary's squares and sums
+/// over millions of runs stay finite.
+pub const MAX_FIGURE: f64 = 1e12;
+
 /// The header of `runs.csv`.
 pub fn header() -> Vec<String> {
     let mut h: Vec<String> = ["run", "seed", "method", "error"]
@@ -140,11 +145,12 @@ pub fn read(path: &Path) -> Result<Vec<MethodOutcome>, StudyError> {
             }
             s.parse::<f64>()
                 .ok()
-                .filter(|v| v.is_finite())
+                .filter(|v| v.is_finite() && v.abs() <= MAX_FIGURE)
                 .ok_or_else(|| {
                     bad(format!(
-                        "row {row}, column `{}`: expected a finite number or nothing, found `{s}`",
-                        want[c]
+                        "row {row}, column `{}`: expected a finite number of magnitude at most {MAX_FIGURE:e} or nothing, found `{}`",
+                        want[c],
+                        magstand_core::recording_csv::shown(s)
                     ))
                 })
         };
