@@ -213,6 +213,30 @@ impl ValidScenario {
     }
 }
 
+/// The key of a wrong-typed value that the TOML error cannot point at. The program table is
+/// read by its `kind`, so a wrong type inside it is reported at the `[program]` header; the
+/// key is the one whose removal changes the error. Only tried after a failure.
+fn misfit_key(text: &str, error: &toml::de::Error) -> Option<String> {
+    if !error.message().starts_with("invalid type") {
+        return None;
+    }
+    let table: toml::Table = text.parse().ok()?;
+    for (name, value) in &table {
+        let Some(inner) = value.as_table() else {
+            continue;
+        };
+        for key in inner.keys() {
+            let mut without = table.clone();
+            without.get_mut(name)?.as_table_mut()?.remove(key);
+            match without.try_into::<Scenario>() {
+                Err(e) if e.message() == error.message() => {}
+                _ => return Some(format!("{name}.{key}")),
+            }
+        }
+    }
+    None
+}
+
 fn parse_error(origin: &str, e: impl std::fmt::Display) -> SimError {
     SimError::Parse {
         origin: origin.to_string(),
@@ -223,7 +247,13 @@ fn parse_error(origin: &str, e: impl std::fmt::Display) -> SimError {
 impl Scenario {
     /// Parses scenario TOML; `origin` names it in errors.
     pub fn from_toml_str(text: &str, origin: &str) -> Result<Self, SimError> {
-        toml::from_str(text).map_err(|e| parse_error(origin, e))
+        toml::from_str(text).map_err(|e| match misfit_key(text, &e) {
+            Some(key) => SimError::Parse {
+                origin: origin.to_string(),
+                message: format!("key `{key}`: {}", e.message().trim_end()),
+            },
+            None => parse_error(origin, e),
+        })
     }
 
     /// Parses scenario TOML and applies `key=value` overrides (dotted keys, TOML values; a value
@@ -450,6 +480,20 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("count"), "{e}");
+    }
+
+    /// Regression: a wrong type inside `[program]` was reported at the `[program]` header
+    /// line, without the key, because the program is read by its `kind`.
+    #[test]
+    fn a_wrong_type_inside_the_program_names_the_key() {
+        let text = "name = \"x\"\n[program]\nkind = \"stair\"\nsteps = 4\ndwell_s = \"abc\"\n";
+        let e = Scenario::from_toml_str(text, "bad.toml")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("bad.toml") && e.contains("`program.dwell_s`") && e.contains("expected f64"),
+            "{e}"
+        );
     }
 
     #[test]
