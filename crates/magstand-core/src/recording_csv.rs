@@ -670,6 +670,13 @@ mod tests {
     }
 
     proptest::proptest! {
+        // A fixed seed: the same cases on every machine and every run (CI never flickers).
+        #![proptest_config(proptest::test_runner::Config {
+            cases: 256,
+            rng_seed: proptest::test_runner::RngSeed::Fixed(0x6d61_6773),
+            ..proptest::test_runner::Config::default()
+        })]
+
         #[test]
         fn arbitrary_text_never_panics(s in "(?s).{0,300}") {
             let _ = read_str(&s, "fuzz.csv");

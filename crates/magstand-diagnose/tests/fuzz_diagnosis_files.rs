@@ -48,7 +48,12 @@ fn finite(what: &str, values: &[magstand_core::Vec3]) {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig { cases: 128, ..ProptestConfig::default() })]
+    // A fixed seed: the same cases on every machine and every run (CI never flickers).
+    #![proptest_config(ProptestConfig {
+        cases: 128,
+        rng_seed: proptest::test_runner::RngSeed::Fixed(0x6d61_6773),
+        ..ProptestConfig::default()
+    })]
 
     #[test]
     fn a_crafted_augmented_model_is_refused_or_predicts_finite_values(

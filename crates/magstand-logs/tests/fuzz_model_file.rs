@@ -40,7 +40,12 @@ fn finite_text(what: &str, text: &str) {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig { cases: 128, ..ProptestConfig::default() })]
+    // A fixed seed: the same cases on every machine and every run (CI never flickers).
+    #![proptest_config(ProptestConfig {
+        cases: 128,
+        rng_seed: proptest::test_runner::RngSeed::Fixed(0x6d61_6773),
+        ..ProptestConfig::default()
+    })]
 
     #[test]
     fn a_crafted_model_is_refused_or_gives_finite_outputs(
@@ -62,10 +67,20 @@ proptest! {
             let out = model
                 .compensate(rec, "small-stair.csv")
                 .unwrap_or_else(|e| panic!("a loaded model must compensate ({value}): {e}"));
+            let dist = model.dist_column(rec);
+            let sd: Vec<_> = (0..rec.len()).map(|r| model.sd_at(rec, r)).collect();
+            for (r, (m, (d, s))) in out.mag_ut.iter().zip(dist.iter().zip(&sd)).enumerate() {
+                assert!(
+                    m.iter().chain(d.iter()).chain(s.iter()).all(|x| x.is_finite()),
+                    "{value} at number {pick}: row {r} compensated {m:?}, disturbance {d:?}, sd {s:?}"
+                );
+            }
+            // A finite but huge result is refused by the writer by name, never written.
             let mut csv = Vec::new();
-            recording_csv::write_to(&out, &mut csv, std::path::Path::new("out.csv"))
-                .unwrap_or_else(|e| panic!("compensated with {value} at number {pick}: {e}"));
-            finite_text("the compensated recording", &String::from_utf8(csv).unwrap());
+            if let Err(e) = recording_csv::write_to(&out, &mut csv, std::path::Path::new("out.csv")) {
+                let e = e.to_string();
+                assert!(e.contains("out.csv") && e.contains("magnitude at most"), "{e}");
+            }
             if let Ok(line) = linear_approximation(&model, LineInput::Throttle, Span::ModelRange) {
                 finite_text("PX4 parameters", &px4_params(&line, 0));
                 finite_text("ArduPilot parameters", &ardupilot_params(&line, 0));

@@ -74,7 +74,12 @@ fn hostile_toml_value() -> impl Strategy<Value = String> {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig { cases: 128, ..ProptestConfig::default() })]
+    // A fixed seed: the same cases on every machine and every run (CI never flickers).
+    #![proptest_config(ProptestConfig {
+        cases: 128,
+        rng_seed: proptest::test_runner::RngSeed::Fixed(0x6d61_6773),
+        ..ProptestConfig::default()
+    })]
 
     #[test]
     fn a_crafted_scenario_is_refused_by_key_or_simulates_finite(

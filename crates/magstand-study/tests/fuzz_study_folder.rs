@@ -97,7 +97,12 @@ fn base() -> &'static (String, String) {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig { cases: 128, ..ProptestConfig::default() })]
+    // A fixed seed: the same cases on every machine and every run (CI never flickers).
+    #![proptest_config(ProptestConfig {
+        cases: 128,
+        rng_seed: proptest::test_runner::RngSeed::Fixed(0x6d61_6773),
+        ..ProptestConfig::default()
+    })]
 
     #[test]
     fn a_crafted_runs_csv_is_refused_or_summarised_finite(
