@@ -2,7 +2,7 @@
 //! effect switched on (at a size comparable to the noise and small beside the main
 //! disturbance), two at once, one outside the catalog, and effect-free controls with and
 //! without `bat_v` / `temp_c`; each diagnosed against the nominal stand by a run that is not
-//! told the effect. `cargo test` runs a fast subset (`tests/diagnosis_concealed.rs`); the full
+//! told the effect. `cargo test` runs a fast subset (`tests/tests/diagnosis_concealed.rs`); the full
 //! suite with several seeds is `cargo run --release -p magstand-tests --bin concealed-suite`.
 use std::collections::BTreeSet;
 

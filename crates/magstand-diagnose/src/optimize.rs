@@ -22,14 +22,14 @@ pub struct Search {
 }
 
 impl Search {
-    fn to_u(&self, v: f64) -> f64 {
+    fn unit_of(&self, v: f64) -> f64 {
         if self.log { v.ln() } else { v }
     }
-    fn from_u(&self, u: f64) -> f64 {
+    fn value_at(&self, u: f64) -> f64 {
         if self.log { u.exp() } else { u }
     }
     fn u_range(&self) -> (f64, f64) {
-        (self.to_u(self.lo), self.to_u(self.hi))
+        (self.unit_of(self.lo), self.unit_of(self.hi))
     }
     fn step(&self) -> f64 {
         let (a, b) = self.u_range();
@@ -50,7 +50,11 @@ const GOLDEN_ITERATIONS: usize = 16;
 /// Minimizes `f` (None where the fit fails) over the searches.
 pub(crate) fn minimize(searches: &[Search], f: impl Fn(&[f64]) -> Option<f64>) -> Option<Optimum> {
     let eval = |u: &[f64]| -> f64 {
-        let theta: Vec<f64> = searches.iter().zip(u).map(|(s, &u)| s.from_u(u)).collect();
+        let theta: Vec<f64> = searches
+            .iter()
+            .zip(u)
+            .map(|(s, &u)| s.value_at(u))
+            .collect();
         f(&theta).filter(|v| v.is_finite()).unwrap_or(f64::INFINITY)
     };
     if searches.is_empty() {
@@ -145,7 +149,7 @@ pub(crate) fn minimize(searches: &[Search], f: impl Fn(&[f64]) -> Option<f64>) -
             down[k] -= h;
             let curv = (eval(&up) - 2.0 * best + eval(&down)) / (h * h);
             let sd_u = (2.0 / curv).sqrt();
-            let dtheta_du = if s.log { s.from_u(best_u[k]) } else { 1.0 };
+            let dtheta_du = if s.log { s.value_at(best_u[k]) } else { 1.0 };
             (curv.is_finite() && curv > 0.0).then_some(sd_u * dtheta_du)
         })
         .collect();
@@ -153,7 +157,7 @@ pub(crate) fn minimize(searches: &[Search], f: impl Fn(&[f64]) -> Option<f64>) -
         theta: searches
             .iter()
             .zip(&best_u)
-            .map(|(s, &u)| s.from_u(u))
+            .map(|(s, &u)| s.value_at(u))
             .collect(),
         value: best,
         sd,

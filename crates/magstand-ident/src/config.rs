@@ -274,7 +274,7 @@ impl ValidFitConfig {
         rows: &dyn Fn(usize) -> bool,
         select: &dyn Fn(usize) -> bool,
         want_sd: bool,
-    ) -> Result<(Structure, Option<SdModel>, Option<Vec<Vec3>>), IdentError> {
+    ) -> Result<RowsFit, IdentError> {
         let unit = |_: usize| Vec3::repeat(1.0);
         let fit_with = |weight: &dyn Fn(usize) -> Vec3,
                         weight_at: &dyn Fn(f64) -> Vec3|
@@ -422,3 +422,7 @@ impl Fit for ValidFitConfig {
         Ok(model)
     }
 }
+
+/// What a fit on chosen rows gives: the structure, the noise model when asked for, and the
+/// residuals of the rows when asked for.
+type RowsFit = (Structure, Option<SdModel>, Option<Vec<Vec3>>);

@@ -122,9 +122,7 @@ impl NormalEquations {
 
     /// Equilibrated Cholesky factor of the normal matrix, the scale used and the reciprocal
     /// condition estimate; refuses empty and (nearly) singular systems.
-    fn factor(
-        &self,
-    ) -> Result<(nalgebra::Cholesky<f64, nalgebra::Dyn>, DVector<f64>, f64), SolveError> {
+    fn factor(&self) -> Result<Factor, SolveError> {
         let p = self.xtx.nrows();
         if self.rows == 0 || self.weight_sum <= 0.0 {
             return Err(SolveError::NoData);
@@ -186,6 +184,10 @@ fn first_dependent(a: &DMatrix<f64>) -> usize {
     }
     p.saturating_sub(1)
 }
+
+/// An equilibrated Cholesky factor, the column scale used and the reciprocal condition
+/// estimate.
+type Factor = (nalgebra::Cholesky<f64, nalgebra::Dyn>, DVector<f64>, f64);
 
 #[cfg(test)]
 mod tests {

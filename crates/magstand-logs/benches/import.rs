@@ -10,7 +10,7 @@ use magstand_logs::log_writer::{LogWriteOptions, dataflash_bytes, ulog_bytes};
 
 fn long_run(rows: usize) -> Recording {
     let mut rec = Recording {
-        thr: vec![Vec::with_capacity(rows); 4],
+        thr: (0..4).map(|_| Vec::with_capacity(rows)).collect(),
         bat_v: Some(Vec::with_capacity(rows)),
         bat_a: Some(Vec::with_capacity(rows)),
         attitude: Some(Vec::with_capacity(rows)),

@@ -313,7 +313,7 @@ mod tests {
             ..Default::default()
         };
         let m = MotorParams::default();
-        let (_, st) = run(&p, &m, &vec![MotorState::default(); 4], 3.0);
+        let (_, st) = run(&p, &m, &[MotorState::default(); 4], 3.0);
         assert!(
             (st.specific_force_mps2.z + GRAVITY_MPS2).abs() < 1e-3,
             "{}",
@@ -369,13 +369,10 @@ mod tests {
         let (_, st) = run(
             &p,
             &m,
-            &vec![
-                MotorState {
-                    speed_rad_s: 900.0,
-                    ..Default::default()
-                };
-                4
-            ],
+            &[MotorState {
+                speed_rad_s: 900.0,
+                ..Default::default()
+            }; 4],
             0.1,
         );
         assert!((st.attitude.angle() - std::f64::consts::FRAC_PI_2).abs() < 1e-12);

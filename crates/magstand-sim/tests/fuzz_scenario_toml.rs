@@ -94,7 +94,7 @@ proptest! {
         let key = keys[pick % keys.len()].clone();
         let text = toml::to_string(&table).unwrap();
         let set = format!("{}={value}", key.replace("][", "].["));
-        let loaded = Scenario::from_toml_with_overrides(&text, name, &[set.clone()])
+        let loaded = Scenario::from_toml_with_overrides(&text, name, std::slice::from_ref(&set))
             .and_then(|s| s.check(name, None));
         let scenario = match loaded {
             Err(e) => {

@@ -179,7 +179,7 @@ fn summarize(id: &str, rows: &[&MethodOutcome]) -> MethodSummary {
         .collect();
 
     // Parameter errors and bounds: only runs that have both.
-    let with: Vec<(&[Vec<f64>; 3], &[Vec<f64>; 3])> = ok
+    let with: Vec<(&PerAxis, &PerAxis)> = ok
         .iter()
         .filter_map(|f| Some((f.param_error.as_ref()?, f.crlb_diag.as_ref()?)))
         .collect();
@@ -222,6 +222,9 @@ fn summarize(id: &str, rows: &[&MethodOutcome]) -> MethodSummary {
         parameters,
     }
 }
+
+/// One vector of parameters per axis (x, y, z).
+type PerAxis = [Vec<f64>; 3];
 
 #[cfg(test)]
 mod tests {

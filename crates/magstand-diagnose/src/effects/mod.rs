@@ -130,7 +130,7 @@ pub trait Effect: Sync + Send {
     /// column) happens here once. By default: `apply` the nonlinear parameters and report them
     /// as searched, which is all an effect made only of scenario settings needs.
     fn switch_on(&self, ctx: &Context, scenario: &mut Scenario, fitted: &EffectFit) -> Vec<Param> {
-        self.apply(ctx, scenario, &fitted.theta);
+        self.apply(ctx, scenario, fitted.theta);
         self.search(ctx)
             .iter()
             .zip(fitted.theta.iter().zip(fitted.theta_sd))
