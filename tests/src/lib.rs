@@ -1,6 +1,7 @@
 //! Helpers shared by the end-to-end tests in this folder.
 
 pub mod concealed;
+pub mod independent;
 use magstand_core::Recording;
 use magstand_sim::{Scenario, ValidScenario, simulate};
 

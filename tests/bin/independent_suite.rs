@@ -1,0 +1,39 @@
+//! Runs the diagnosis and fit suite on recordings from the independent stand generator and
+//! prints its Markdown report:
+//! `cargo run --release -p magstand-tests --bin independent-suite -- [SEEDS [LABEL]]`
+//! (default 2 seeds, every case, both modes; LABEL keeps the cases whose label contains it;
+//! FIRST_SEED in the environment starts elsewhere).
+use magstand_tests::independent::{Mode, cases, fit_accuracy, markdown, run_case};
+
+fn main() {
+    let seeds: u64 = std::env::args()
+        .nth(1)
+        .map(|s| s.parse().expect("SEEDS: a whole number"))
+        .unwrap_or(2);
+    let only = std::env::args().nth(2).unwrap_or_default();
+    let first_seed: u64 = std::env::var("FIRST_SEED")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(1);
+    let mut outcomes = Vec::new();
+    for case in cases().into_iter().filter(|c| c.label.contains(&only)) {
+        for mode in [Mode::Unstated, Mode::Stated] {
+            for seed in first_seed..first_seed + seeds {
+                let o = run_case(&case, mode, seed);
+                eprintln!(
+                    "{:40} {mode:?} seed {seed}: {:?} ({:.1} s)",
+                    case.label, o.verdict, o.diagnose_s
+                );
+                outcomes.push(o);
+            }
+        }
+    }
+    print!("{}", markdown(&outcomes));
+    if only.is_empty() {
+        println!("\n### Fit on independent data (identified on seed 101, judged on seed 102 against the generator's truth)\n");
+        println!("| method | RMSE x, y, z (µT) |\n|---|---|");
+        for (name, r) in fit_accuracy(101, 102) {
+            println!("| {name} | {:.3}, {:.3}, {:.3} |", r[0], r[1], r[2]);
+        }
+    }
+}
