@@ -30,7 +30,9 @@ fn main() {
     }
     print!("{}", markdown(&outcomes));
     if only.is_empty() {
-        println!("\n### Fit on independent data (identified on seed 101, judged on seed 102 against the generator's truth)\n");
+        println!(
+            "\n### Fit on independent data (identified on seed 101, judged on seed 102 against the generator's truth)\n"
+        );
         println!("| method | RMSE x, y, z (µT) |\n|---|---|");
         for (name, r) in fit_accuracy(101, 102) {
             println!("| {name} | {:.3}, {:.3}, {:.3} |", r[0], r[1], r[2]);

@@ -271,13 +271,28 @@ pub fn fit_accuracy(ident: u64, valid: u64) -> Vec<(String, [f64; 3])> {
     let (va_rec, truth) = recording(&case, valid);
     let mut out = Vec::new();
     for (name, input, config) in [
-        ("fit default (automatic, throttle)", InputKind::Throttle, FitConfig::automatic()),
-        ("fit automatic, current input", InputKind::Current, FitConfig::automatic()),
-        ("fit automatic, per-motor input", InputKind::Motors, FitConfig::automatic()),
+        (
+            "fit default (automatic, throttle)",
+            InputKind::Throttle,
+            FitConfig::automatic(),
+        ),
+        (
+            "fit automatic, current input",
+            InputKind::Current,
+            FitConfig::automatic(),
+        ),
+        (
+            "fit automatic, per-motor input",
+            InputKind::Motors,
+            FitConfig::automatic(),
+        ),
     ] {
         let data = Dataset::from_recording(&id_rec, input, "ident").unwrap();
         let model = config.check().unwrap().fit(&data).unwrap();
-        out.push((name.to_string(), rmse_ut(&model.dist_column(&va_rec), &truth)));
+        out.push((
+            name.to_string(),
+            rmse_ut(&model.dist_column(&va_rec), &truth),
+        ));
     }
     // The diagnosis's augmented model (calibrated stand physics), as `diagnose --model-out`.
     for mode in [Mode::Unstated, Mode::Stated] {
@@ -348,7 +363,12 @@ pub fn markdown(outcomes: &[Outcome]) -> String {
             let runs: Vec<&&Outcome> = these.iter().filter(|o| row_label(o) == r).collect();
             let cells: Vec<String> = names
                 .iter()
-                .map(|n| runs.iter().filter(|o| o.judged.contains(n)).count().to_string())
+                .map(|n| {
+                    runs.iter()
+                        .filter(|o| o.judged.contains(n))
+                        .count()
+                        .to_string()
+                })
                 .collect();
             s += &format!("| {r} | {} | {} |\n", runs.len(), cells.join(" | "));
         }
@@ -360,7 +380,9 @@ pub fn markdown(outcomes: &[Outcome]) -> String {
             .iter()
             .map(|o| o.expected.difference(&o.judged).count())
             .sum();
-        s += &format!("\nFalse alarms (names given that were not injected): {false_alarms}; misses: {misses}.\n");
+        s += &format!(
+            "\nFalse alarms (names given that were not injected): {false_alarms}; misses: {misses}.\n"
+        );
     }
     s
 }

@@ -42,7 +42,7 @@ pub struct Stand {
     pub full_a: f64,
     /// Exponent of the drive-to-current law.
     pub exponent: f64,
-    /// Field per ampere of each motor's wires, µT/A (x, y, z).
+    /// Field per ampere of each motor's wires, µT/A (x, y, z), one per motor.
     pub gains_ut_per_a: Vec<[f64; 3]>,
     /// Field per ampere squared of the total current (a steel part), µT/A².
     pub quadratic_ut_per_a2: [f64; 3],
@@ -96,12 +96,9 @@ impl Default for Stand {
             idle_a: 0.7,
             full_a: 16.0,
             exponent: 1.7,
-            gains_ut_per_a: vec![
-                [0.55, -0.20, 0.90],
-                [-0.35, 0.45, 0.75],
-                [0.25, 0.30, -0.60],
-                [-0.40, -0.50, 0.85],
-            ],
+            // Alike for every motor: the field of this stand depends on the total current
+            // only, so a control has no motor asymmetry by any definition.
+            gains_ut_per_a: vec![[0.55, -0.25, 0.90]; 4],
             quadratic_ut_per_a2: [0.0009, -0.0006, 0.0012],
             background_ut: [18.0, -4.5, 44.0],
             supply: Supply::Bench { voltage_v: 16.8 },
