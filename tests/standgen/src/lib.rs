@@ -318,7 +318,7 @@ impl Program {
 /// Makes the recording of `case`.
 pub fn generate(case: &Case) -> Generated {
     let s = &case.stand;
-    let mut rng = Random(case.seed ^ 0x5eed_0f_57a9d);
+    let mut rng = Random(case.seed ^ 0x05ee_d0f5_7a9d);
     // Jittered sample times first, so the program spans them.
     let mut t_s = Vec::with_capacity(case.rows);
     let mut t = 0.0;
