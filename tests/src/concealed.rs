@@ -23,6 +23,7 @@ fn stand_toml(supply: &str, rigid_differential: bool) -> String {
          [program]\nkind = \"stair\"\noff_s = 10.0\nsteps = 10\ndwell_s = 8.0\n\
          direction = \"up_down\"\nrepeats = 2\n\
          {supply}{differential}\
+         [motors]\ndead_zone = 0.37\nspinup_tau_s = 0.06\n\
          [magnetometer]\nodr_hz = 50.0\n\
          [logging]\nrecord_power = false\n"
     )

@@ -18,7 +18,7 @@
 use std::collections::BTreeSet;
 
 use magstand_core::{Recording, recording_csv};
-use magstand_diagnose::{DEFAULT_NOMINAL, DiagnoseConfig, Diagnosis, UNEXPLAINED, diagnose};
+use magstand_diagnose::{DiagnoseConfig, Diagnosis, UNEXPLAINED, diagnose, unstated_nominal};
 use magstand_ident::{Dataset, Fit, FitConfig, InputKind};
 use magstand_sim::{Scenario, ValidScenario};
 use magstand_standgen::{Case as GenCase, Effect, Stand, generate};
@@ -169,16 +169,15 @@ pub fn recording(case: &Case, seed: u64) -> (Recording, Vec<[f64; 3]>) {
 
 /// The nominal stand for `mode`.
 pub fn nominal(mode: Mode) -> ValidScenario {
-    let text = match mode {
-        Mode::Unstated => DEFAULT_NOMINAL.to_string(),
+    match mode {
+        Mode::Unstated => unstated_nominal().unwrap(),
         Mode::Stated => {
             let stand = Stand::default();
-            stand.stated_scenario(stand.dead_zone)
+            Scenario::from_toml_str(&stand.stated_scenario(stand.dead_zone), "stated stand")
+                .and_then(|s| s.check("stated stand", None))
+                .unwrap_or_else(|e| panic!("stated nominal: {e}"))
         }
-    };
-    Scenario::from_toml_str(&text, "nominal")
-        .and_then(|s| s.check("nominal", None))
-        .unwrap_or_else(|e| panic!("{mode:?} nominal: {e}"))
+    }
 }
 
 /// What one diagnosis gave.

@@ -8,8 +8,7 @@ use clap::Args;
 use crate::files;
 use crate::simulate_cmd::load_scenario;
 use magstand_core::recording_csv;
-use magstand_diagnose::{DEFAULT_NOMINAL, DiagnoseConfig, diagnose};
-use magstand_sim::Scenario;
+use magstand_diagnose::{DiagnoseConfig, diagnose, unstated_nominal};
 
 /// Arguments of `magstand diagnose`.
 #[derive(Args)]
@@ -58,8 +57,7 @@ pub fn run(a: DiagnoseArgs) -> Result<()> {
     .check()?;
     let nominal = match &a.scenario {
         Some(s) => load_scenario(s, &[])?,
-        None => Scenario::from_toml_str(DEFAULT_NOMINAL, "default nominal stand")
-            .and_then(|s| s.check("default nominal stand", None))?,
+        None => unstated_nominal()?,
     };
     let mut inputs = vec![a.recording.clone()];
     if let Some(s) = &a.scenario {

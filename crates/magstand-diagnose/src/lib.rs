@@ -91,3 +91,14 @@ dwell_s = 10.0
 kind = "bench"
 voltage_v = 12.0
 "#;
+
+/// The nominal stand of a diagnosis given no scenario: [`DEFAULT_NOMINAL`] with nothing
+/// stated (`Scenario::states` is false for every key), since its constants are starting
+/// points, not claims about the user's stand.
+pub fn unstated_nominal() -> Result<magstand_sim::ValidScenario, DiagnoseError> {
+    Ok(
+        magstand_sim::Scenario::from_toml_str(DEFAULT_NOMINAL, "default nominal stand")?
+            .with_nothing_stated()
+            .check("default nominal stand", None)?,
+    )
+}

@@ -21,6 +21,8 @@ const STAND: &str = r#"
     [supply]
     kind = "bench"
     voltage_v = 12.0
+    [motors]
+    spinup_tau_s = 0.06
     [magnetometer]
     odr_hz = 50.0
 "#;

@@ -149,6 +149,21 @@ pub struct Scenario {
     /// What a Monte Carlo study changes from run to run.
     #[serde(default)]
     pub study: StudyParams,
+    /// The dotted keys the scenario's text wrote out (`motors.dead_zone`, ...): what its author
+    /// stated about the stand, as against the defaults filled in for the rest.
+    #[serde(skip)]
+    stated: StatedKeys,
+}
+
+/// The keys a scenario's text wrote out. Not part of its physics: two scenarios with the same
+/// values are equal however they were written.
+#[derive(Debug, Clone, Default)]
+struct StatedKeys(std::collections::BTreeSet<String>);
+
+impl PartialEq for StatedKeys {
+    fn eq(&self, _: &Self) -> bool {
+        true
+    }
 }
 
 /// A checked scenario, ready to simulate.
@@ -213,6 +228,22 @@ impl ValidScenario {
     }
 }
 
+/// Every dotted key of `table`, tables and their members alike (`motors`, `motors.count`).
+fn dotted_keys(table: &toml::Table) -> std::collections::BTreeSet<String> {
+    fn walk(t: &toml::Table, prefix: &str, out: &mut std::collections::BTreeSet<String>) {
+        for (k, v) in t {
+            let key = format!("{prefix}{k}");
+            if let Some(inner) = v.as_table() {
+                walk(inner, &format!("{key}."), out);
+            }
+            out.insert(key);
+        }
+    }
+    let mut out = std::collections::BTreeSet::new();
+    walk(table, "", &mut out);
+    out
+}
+
 /// The key of a wrong-typed value that the TOML error cannot point at. The program table is
 /// read by its `kind`, so a wrong type inside it is reported at the `[program]` header; the
 /// key is the one whose removal changes the error. Only tried after a failure.
@@ -247,13 +278,30 @@ fn parse_error(origin: &str, e: impl std::fmt::Display) -> SimError {
 impl Scenario {
     /// Parses scenario TOML; `origin` names it in errors.
     pub fn from_toml_str(text: &str, origin: &str) -> Result<Self, SimError> {
-        toml::from_str(text).map_err(|e| match misfit_key(text, &e) {
+        let mut s: Scenario = toml::from_str(text).map_err(|e| match misfit_key(text, &e) {
             Some(key) => SimError::Parse {
                 origin: origin.to_string(),
                 message: format!("key `{key}`: {}", e.message().trim_end()),
             },
             None => parse_error(origin, e),
-        })
+        })?;
+        if let Ok(table) = text.parse::<toml::Table>() {
+            s.stated = StatedKeys(dotted_keys(&table));
+        }
+        Ok(s)
+    }
+
+    /// Whether the scenario's text wrote out `key` (a dotted key such as `motors.dead_zone`),
+    /// rather than leaving it to its default.
+    pub fn states(&self, key: &str) -> bool {
+        self.stated.0.contains(key)
+    }
+
+    /// The same physics with nothing stated: every constant is a default, a starting point
+    /// rather than a claim about the stand (magstand's nominal stand when the user gives none).
+    pub fn with_nothing_stated(mut self) -> Self {
+        self.stated.0.clear();
+        self
     }
 
     /// Parses scenario TOML and applies `key=value` overrides (dotted keys, TOML values; a value
@@ -279,8 +327,13 @@ impl Scenario {
             }
             Ok(table)
         };
-        let error = match merged(None)?.try_into::<Self>() {
-            Ok(s) => return Ok(s),
+        let table = merged(None)?;
+        let stated = dotted_keys(&table);
+        let error = match table.try_into::<Self>() {
+            Ok(mut s) => {
+                s.stated = StatedKeys(stated);
+                return Ok(s);
+            }
             Err(e) => e,
         };
         // Name the `--set` whose removal makes the scenario parse, rather than a line of the
@@ -480,6 +533,18 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("count"), "{e}");
+    }
+
+    #[test]
+    fn the_keys_written_out_are_stated_and_the_defaults_are_not() {
+        let text = "name = \"x\"\n[program]\nkind = \"stair\"\nsteps = 4\ndwell_s = 1.0\n[motors]\ndead_zone = 0.2\n";
+        let s = Scenario::from_toml_str(text, "x").unwrap();
+        assert!(s.states("motors.dead_zone") && s.states("motors") && s.states("program.steps"));
+        assert!(!s.states("motors.spinup_tau_s") && !s.states("supply"));
+        let o = Scenario::from_toml_with_overrides(text, "x", &["motors.spinup_tau_s=0.1".into()])
+            .unwrap();
+        assert!(o.states("motors.spinup_tau_s") && o.states("motors.dead_zone"));
+        assert!(!s.with_nothing_stated().states("motors.dead_zone"));
     }
 
     /// Regression: a wrong type inside `[program]` was reported at the `[program]` header

@@ -25,6 +25,9 @@ impl Effect for CurrentLag {
             points: 15,
         }]
     }
+    fn stand_constant(&self, s: &Scenario) -> Option<(&'static str, f64)> {
+        Some(("motors.spinup_tau_s", s.motors.spinup_tau_s))
+    }
     fn apply(&self, _ctx: &Context, s: &mut Scenario, theta: &[f64]) {
         s.motors.spinup_tau_s = theta[0];
     }

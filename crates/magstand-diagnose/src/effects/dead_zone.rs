@@ -24,6 +24,9 @@ impl Effect for DeadZone {
             points: 31,
         }]
     }
+    fn stand_constant(&self, s: &Scenario) -> Option<(&'static str, f64)> {
+        Some(("motors.dead_zone", s.motors.dead_zone))
+    }
     fn apply(&self, _ctx: &Context, s: &mut Scenario, theta: &[f64]) {
         s.motors.dead_zone = theta[0];
     }

@@ -106,6 +106,14 @@ pub trait Effect: Sync + Send {
     /// The nonlinear parameters searched (none when the effect is linear in its regressors).
     fn search(&self, ctx: &Context) -> Vec<Search>;
 
+    /// The stand constant this effect re-fits, as its scenario key and its value in `s`, for
+    /// an effect that is a different value of a nominal constant (a dead zone, a spin-up time)
+    /// rather than physics the nominal stand lacks. Such an effect is named only where the data
+    /// reject the nominal value: its fit must lie beyond 3 standard uncertainties of it.
+    fn stand_constant(&self, _s: &Scenario) -> Option<(&'static str, f64)> {
+        None
+    }
+
     /// Changes the replayed physics for nonlinear parameters `theta`.
     fn apply(&self, _ctx: &Context, _scenario: &mut Scenario, _theta: &[f64]) {}
 

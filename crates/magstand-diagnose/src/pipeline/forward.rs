@@ -118,6 +118,35 @@ fn try_candidate(
     }
 }
 
+/// How far, in standard uncertainties, a fitted stand constant must lie from the stated value
+/// for the data to reject the statement.
+const REJECT_STATED_SD: f64 = 3.0;
+
+/// A candidate that re-fits a stated stand constant (a dead zone, a spin-up time) stands only
+/// where the data reject the stated value: its fit must lie more than [`REJECT_STATED_SD`]
+/// standard uncertainties from it. Otherwise it is kept in the record, untestable, with why.
+fn refuse_within_stated(c: &mut Candidate, effect: &dyn Effect, ctx: &Context) {
+    let Some((key, stated)) = effect.stand_constant(ctx.nominal) else {
+        return;
+    };
+    let Some((theta, sd, _)) = &c.fitted else {
+        return;
+    };
+    let rejects = sd
+        .first()
+        .copied()
+        .flatten()
+        .is_some_and(|sd| (theta[0] - stated).abs() > REJECT_STATED_SD * sd);
+    if !rejects {
+        let shown = sd.first().copied().flatten();
+        c.result.note = Some(format!(
+            "fitted {key} = {} is within {REJECT_STATED_SD} sd of the stated {stated} (or its uncertainty is unknown): the data do not reject the statement",
+            crate::diagnosis::value_with_sd(theta[0], shown)
+        ));
+        c.result.p_value = None;
+    }
+}
+
 /// Runs the forward search over `effects` from the baseline `base`.
 pub(crate) fn forward_search<'e>(
     ctx: &mut Context,
@@ -155,7 +184,7 @@ pub(crate) fn forward_search<'e>(
             .filter(|e| !terms.iter().any(|t| t.effect.name() == e.name()))
             .collect();
         let shared: &Context = ctx;
-        let tried: Vec<Candidate> = open
+        let mut tried: Vec<Candidate> = open
             .par_iter()
             .map(|e| {
                 if e.applies(shared) {
@@ -165,6 +194,9 @@ pub(crate) fn forward_search<'e>(
                 }
             })
             .collect();
+        for (c, e) in tried.iter_mut().zip(&open) {
+            refuse_within_stated(c, *e, shared);
+        }
         let k = tried.iter().filter(|c| c.fitted.is_some()).count().max(1);
         let threshold = cfg.significance / k as f64;
         let best = tried
