@@ -12,6 +12,8 @@ mod common;
 
 use std::path::{Path, PathBuf};
 
+use magstand_core::file_fuzzing::non_finite_word;
+
 fn files_under(dir: &Path) -> Vec<PathBuf> {
     let mut out = Vec::new();
     for e in std::fs::read_dir(dir).into_iter().flatten().flatten() {
@@ -34,14 +36,6 @@ fn snapshot(dir: &Path) -> Vec<(PathBuf, Vec<u8>)> {
             (p, bytes)
         })
         .collect()
-}
-
-/// The words Rust prints for non-finite numbers (`NaN`, `inf`); the C header's `INFINITY`
-/// (the start of a minimum search) is code, not a value.
-fn non_finite_word(text: &str) -> Option<String> {
-    text.split(|c: char| !(c.is_ascii_alphanumeric() || c == '_'))
-        .find(|w| matches!(*w, "NaN" | "nan" | "inf"))
-        .map(str::to_string)
 }
 
 /// Fails unless every number in every file under `out` is finite.

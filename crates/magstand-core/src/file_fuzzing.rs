@@ -16,6 +16,23 @@
 use proptest::prelude::*;
 use serde_json::Value;
 
+/// The property-test settings of every file-format test: `cases` cases from a fixed seed, so
+/// the same cases run on every machine and every run (CI never flickers).
+pub fn config(cases: u32) -> proptest::test_runner::Config {
+    proptest::test_runner::Config {
+        cases,
+        rng_seed: proptest::test_runner::RngSeed::Fixed(0x6d61_6773),
+        ..proptest::test_runner::Config::default()
+    }
+}
+
+/// The first word of `text` that Rust prints for a non-finite number (`NaN`, `nan`, `inf`),
+/// if any. Code such as a C header's `INFINITY` (the start of a minimum search) is not one.
+pub fn non_finite_word(text: &str) -> Option<&str> {
+    text.split(|c: char| !(c.is_ascii_alphanumeric() || c == '_'))
+        .find(|w| matches!(*w, "NaN" | "nan" | "inf"))
+}
+
 /// Numbers a crafted file might carry: huge, tiny, negative, zero, integers past 2^53 and
 /// ordinary values, but always finite (JSON and CSV readers refuse NaN text themselves).
 pub fn hostile_f64() -> impl Strategy<Value = f64> {

@@ -48,12 +48,7 @@ fn finite(what: &str, values: &[magstand_core::Vec3]) {
 }
 
 proptest! {
-    // A fixed seed: the same cases on every machine and every run (CI never flickers).
-    #![proptest_config(ProptestConfig {
-        cases: 128,
-        rng_seed: proptest::test_runner::RngSeed::Fixed(0x6d61_6773),
-        ..ProptestConfig::default()
-    })]
+    #![proptest_config(magstand_core::file_fuzzing::config(128))]
 
     #[test]
     fn a_crafted_augmented_model_is_refused_or_predicts_finite_values(
@@ -95,9 +90,7 @@ proptest! {
             std::fs::write(&path, &crafted).unwrap();
             let Ok(d) = Diagnosis::load(&path) else { return };
             let summary = d.summary();
-            let bad = summary
-                .split(|c: char| !(c.is_ascii_alphanumeric() || c == '_'))
-                .find(|w| matches!(*w, "NaN" | "inf"));
+            let bad = magstand_core::file_fuzzing::non_finite_word(&summary);
             assert!(bad.is_none(), "{value} at number {pick}: {summary}");
             assert_eq!(std::fs::read_to_string(&path).unwrap(), crafted, "the input changed");
         });

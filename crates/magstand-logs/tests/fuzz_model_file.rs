@@ -33,19 +33,12 @@ fn model_text(rec: &magstand_core::Recording) -> String {
 /// Fails on the words Rust prints for non-finite numbers (`NaN`, `inf`); the C header's own
 /// `INFINITY` (the start of a minimum search) is code, not a value.
 fn finite_text(what: &str, text: &str) {
-    let bad = text
-        .split(|c: char| !(c.is_ascii_alphanumeric() || c == '_'))
-        .find(|w| matches!(*w, "NaN" | "nan" | "inf"));
+    let bad = magstand_core::file_fuzzing::non_finite_word(text);
     assert!(bad.is_none(), "{what} holds {bad:?}:\n{text}");
 }
 
 proptest! {
-    // A fixed seed: the same cases on every machine and every run (CI never flickers).
-    #![proptest_config(ProptestConfig {
-        cases: 128,
-        rng_seed: proptest::test_runner::RngSeed::Fixed(0x6d61_6773),
-        ..ProptestConfig::default()
-    })]
+    #![proptest_config(magstand_core::file_fuzzing::config(128))]
 
     #[test]
     fn a_crafted_model_is_refused_or_gives_finite_outputs(

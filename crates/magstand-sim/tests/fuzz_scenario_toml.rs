@@ -74,12 +74,7 @@ fn hostile_toml_value() -> impl Strategy<Value = String> {
 }
 
 proptest! {
-    // A fixed seed: the same cases on every machine and every run (CI never flickers).
-    #![proptest_config(ProptestConfig {
-        cases: 128,
-        rng_seed: proptest::test_runner::RngSeed::Fixed(0x6d61_6773),
-        ..ProptestConfig::default()
-    })]
+    #![proptest_config(magstand_core::file_fuzzing::config(128))]
 
     #[test]
     fn a_crafted_scenario_is_refused_by_key_or_simulates_finite(

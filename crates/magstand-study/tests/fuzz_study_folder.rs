@@ -97,12 +97,7 @@ fn base() -> &'static (String, String) {
 }
 
 proptest! {
-    // A fixed seed: the same cases on every machine and every run (CI never flickers).
-    #![proptest_config(ProptestConfig {
-        cases: 128,
-        rng_seed: proptest::test_runner::RngSeed::Fixed(0x6d61_6773),
-        ..ProptestConfig::default()
-    })]
+    #![proptest_config(magstand_core::file_fuzzing::config(128))]
 
     #[test]
     fn a_crafted_runs_csv_is_refused_or_summarised_finite(
