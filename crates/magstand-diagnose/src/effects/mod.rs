@@ -108,8 +108,9 @@ pub trait Effect: Sync + Send {
 
     /// The stand constant this effect re-fits, as its scenario key and its value in `s`, for
     /// an effect that is a different value of a nominal constant (a dead zone, a spin-up time)
-    /// rather than physics the nominal stand lacks. Such an effect is named only where the data
-    /// reject the nominal value: its fit must lie beyond 3 standard uncertainties of it.
+    /// rather than physics the nominal stand lacks. Where the scenario states the constant, such
+    /// an effect is named only where the data reject the stated value: its fit must lie beyond
+    /// 3 standard uncertainties of it.
     fn stand_constant(&self, _s: &Scenario) -> Option<(&'static str, f64)> {
         None
     }

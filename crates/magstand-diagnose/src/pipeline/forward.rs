@@ -122,13 +122,18 @@ fn try_candidate(
 /// for the data to reject the statement.
 const REJECT_STATED_SD: f64 = 3.0;
 
-/// A candidate that re-fits a stated stand constant (a dead zone, a spin-up time) stands only
-/// where the data reject the stated value: its fit must lie more than [`REJECT_STATED_SD`]
-/// standard uncertainties from it. Otherwise it is kept in the record, untestable, with why.
+/// A candidate that re-fits a stand constant the scenario states (a dead zone, a spin-up
+/// time) stands only where the data reject the stated value: its fit must lie more than
+/// [`REJECT_STATED_SD`] standard uncertainties from it. Otherwise it is kept in the record,
+/// untestable, with why. (A constant the scenario leaves out is still tested by its held-out
+/// gain alone, until it is calibrated with the baseline instead.)
 fn refuse_within_stated(c: &mut Candidate, effect: &dyn Effect, ctx: &Context) {
     let Some((key, stated)) = effect.stand_constant(ctx.nominal) else {
         return;
     };
+    if !ctx.nominal.states(key) {
+        return;
+    }
     let Some((theta, sd, _)) = &c.fitted else {
         return;
     };
