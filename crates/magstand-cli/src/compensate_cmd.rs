@@ -102,11 +102,8 @@ fn warn_beyond_identified(model: &Model, rec: &Recording, origin: &str) {
 pub fn run(a: CompensateArgs) -> Result<()> {
     files::refuse_overwriting_inputs(&[&a.model, &a.recording], &[&a.out])?;
     // Read once: the declared format picks the reader.
-    let text = magstand_core::input_file::read_to_string(
-        &a.model,
-        magstand_core::input_file::MAX_DOCUMENT_BYTES,
-    )
-    .with_context(|| format!("reading the model {}", a.model.display()))?;
+    let text = magstand_core::input_file::read_document(&a.model)
+        .with_context(|| format!("reading the model {}", a.model.display()))?;
     if declared_format(&text).as_deref() == Some(magstand_diagnose::augmented_model::FORMAT) {
         return run_augmented(&a, &text);
     }

@@ -115,6 +115,12 @@ pub fn read_to_string(path: &Path, max_bytes: u64) -> io::Result<String> {
     })
 }
 
+/// Reads a model, diagnosis, study or scenario file as text, bounded by
+/// [`MAX_DOCUMENT_BYTES`] (see [`read_to_string`]).
+pub fn read_document(path: &Path) -> io::Result<String> {
+    read_to_string(path, MAX_DOCUMENT_BYTES)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -39,6 +39,17 @@ pub mod seeds;
 pub use error::CoreError;
 pub use recording::{GroundTruth, ImuColumns, Recording};
 
+/// Whether `v` is a finite number of magnitude at most `limit`: the test every reader and
+/// writer of magstand's files applies to a number before it is used or written (a NaN fails).
+///
+/// ```
+/// assert!(magstand_core::within(-3.0, 5.0));
+/// assert!(!magstand_core::within(f64::NAN, 5.0) && !magstand_core::within(1e308, 1e5));
+/// ```
+pub fn within(v: f64, limit: f64) -> bool {
+    v.is_finite() && v.abs() <= limit
+}
+
 /// A 3-vector of f64, used for every per-axis quantity (field, acceleration, rate).
 pub type Vec3 = nalgebra::Vector3<f64>;
 

@@ -117,7 +117,7 @@ fn parse_cell(path: &Path, row: usize, column: &str, cell: &str) -> Result<f64, 
         expected: format!("a finite number of magnitude at most {limit:e}"),
     };
     let v: f64 = cell.trim().parse().map_err(|_| bad())?;
-    if v.is_finite() && v.abs() <= limit {
+    if crate::within(v, limit) {
         Ok(v)
     } else {
         Err(bad())
@@ -430,7 +430,7 @@ pub fn write_to(rec: &Recording, out: impl Write, origin: &Path) -> Result<(), C
         }
         cells.clear();
         for (k, &(v, decimals)) in values.iter().enumerate() {
-            if !(v.is_finite() && v.abs() <= limits[k]) {
+            if !crate::within(v, limits[k]) {
                 return Err(CoreError::BadCell {
                     path: origin.to_path_buf(),
                     row: r + 1,

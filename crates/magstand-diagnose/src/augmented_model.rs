@@ -135,14 +135,11 @@ impl NoiseLaw {
 impl AugmentedModel {
     /// Reads a model file, refusing other formats and versions by name.
     pub fn load(path: &Path) -> Result<Self, DiagnoseError> {
-        let text = magstand_core::input_file::read_to_string(
-            path,
-            magstand_core::input_file::MAX_DOCUMENT_BYTES,
-        )
-        .map_err(|source| DiagnoseError::Io {
-            path: path.to_path_buf(),
-            source,
-        })?;
+        let text =
+            magstand_core::input_file::read_document(path).map_err(|source| DiagnoseError::Io {
+                path: path.to_path_buf(),
+                source,
+            })?;
         Self::from_json(&text, path)
     }
 

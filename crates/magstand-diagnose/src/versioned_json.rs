@@ -23,14 +23,11 @@ pub(crate) fn read<T: DeserializeOwned>(
     version: u32,
     head: impl Fn(&T) -> (&str, u32),
 ) -> Result<T, DiagnoseError> {
-    let text = magstand_core::input_file::read_to_string(
-        path,
-        magstand_core::input_file::MAX_DOCUMENT_BYTES,
-    )
-    .map_err(|source| DiagnoseError::Io {
-        path: path.to_path_buf(),
-        source,
-    })?;
+    let text =
+        magstand_core::input_file::read_document(path).map_err(|source| DiagnoseError::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
     parse(&text, path, format, version, head)
 }
 

@@ -342,14 +342,11 @@ impl Model {
     /// Reads a model file and checks its format, version and consistency.
     pub fn load(path: &Path) -> Result<Self, IdentError> {
         let origin = path.display().to_string();
-        let text = magstand_core::input_file::read_to_string(
-            path,
-            magstand_core::input_file::MAX_DOCUMENT_BYTES,
-        )
-        .map_err(|e| IdentError::ModelFile {
-            origin: origin.clone(),
-            message: e.to_string(),
-        })?;
+        let text =
+            magstand_core::input_file::read_document(path).map_err(|e| IdentError::ModelFile {
+                origin: origin.clone(),
+                message: e.to_string(),
+            })?;
         Self::from_json(&text, &origin)
     }
 
@@ -384,7 +381,7 @@ impl Model {
         let i = &self.input;
         // The same bounds the fit keeps: inputs of a real vehicle (a current of at most
         // 1e5 A), a span that normalizes without overflow, values whose products stay finite.
-        let within = |v: f64, limit: f64| v.is_finite() && v.abs() <= limit;
+        use magstand_core::within;
         if !(within(i.lo, MAX_RAW_INPUT)
             && within(i.hi, MAX_RAW_INPUT)
             && i.hi - i.lo >= MIN_INPUT_SPAN

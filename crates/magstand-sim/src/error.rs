@@ -87,7 +87,7 @@ impl Checker<'_> {
 
     /// Every component must be finite.
     pub fn within3(&self, key: &str, v: [f64; 3], max_abs: f64) -> Result<(), SimError> {
-        if v.iter().all(|x| x.is_finite() && x.abs() <= max_abs) {
+        if v.iter().all(|&x| magstand_core::within(x, max_abs)) {
             Ok(())
         } else {
             Err(self.fail(

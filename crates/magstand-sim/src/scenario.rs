@@ -356,14 +356,11 @@ impl Scenario {
     /// Reads a scenario file, applies overrides and checks it. Relative paths inside (a replay
     /// program's file) are resolved against the file's folder.
     pub fn load(path: &Path, overrides: &[String]) -> Result<ValidScenario, SimError> {
-        let text = magstand_core::input_file::read_to_string(
-            path,
-            magstand_core::input_file::MAX_DOCUMENT_BYTES,
-        )
-        .map_err(|source| SimError::Io {
-            path: path.to_path_buf(),
-            source,
-        })?;
+        let text =
+            magstand_core::input_file::read_document(path).map_err(|source| SimError::Io {
+                path: path.to_path_buf(),
+                source,
+            })?;
         let origin = path.display().to_string();
         let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
         Self::from_toml_with_overrides(&text, &origin, overrides)?.check(&origin, Some(&base))

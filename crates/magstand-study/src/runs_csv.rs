@@ -145,7 +145,7 @@ pub fn read(path: &Path) -> Result<Vec<MethodOutcome>, StudyError> {
             }
             s.parse::<f64>()
                 .ok()
-                .filter(|v| v.is_finite() && v.abs() <= MAX_FIGURE)
+                .filter(|&v| magstand_core::within(v, MAX_FIGURE))
                 .ok_or_else(|| {
                     bad(format!(
                         "row {row}, column `{}`: expected a finite number of magnitude at most {MAX_FIGURE:e} or nothing, found `{}`",

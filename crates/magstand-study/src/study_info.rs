@@ -68,14 +68,11 @@ impl StudyInfo {
 
     /// Reads and checks `study.json`.
     pub fn read(path: &Path) -> Result<Self, StudyError> {
-        let text = magstand_core::input_file::read_to_string(
-            path,
-            magstand_core::input_file::MAX_DOCUMENT_BYTES,
-        )
-        .map_err(|source| StudyError::Io {
-            path: path.into(),
-            source,
-        })?;
+        let text =
+            magstand_core::input_file::read_document(path).map_err(|source| StudyError::Io {
+                path: path.into(),
+                source,
+            })?;
         let info: StudyInfo = serde_json::from_str(&text).map_err(|e| StudyError::Malformed {
             path: path.into(),
             message: e.to_string(),
