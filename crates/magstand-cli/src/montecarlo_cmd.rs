@@ -8,7 +8,9 @@ use clap::{Args, Subcommand};
 use crate::files;
 use crate::progress::RunsBar;
 use crate::simulate_cmd::load_scenario;
-use magstand_study::{Shard, StudyConfig, StudyResult, Summary, run_study, write_summary};
+use magstand_study::{
+    Shard, StudyConfig, StudyError, StudyResult, Summary, run_study, write_summary,
+};
 
 /// Arguments of `magstand montecarlo`.
 #[derive(Args)]
@@ -97,7 +99,7 @@ fn study(a: StudyArgs) -> Result<()> {
     let shard = a
         .shard
         .as_deref()
-        .map(Shard::parse)
+        .map(|t| Shard::parse(t).map_err(flagged))
         .transpose()?
         .unwrap_or(Shard::ALL);
     let config = |ident: Vec<String>| StudyConfig {
@@ -109,13 +111,15 @@ fn study(a: StudyArgs) -> Result<()> {
     };
     let inputs = files::scenario_inputs(&spec, &scenario);
     let Some(sweep) = &a.sweep else {
-        let valid = config(a.ident_overrides.clone()).check(&scenario)?;
+        let valid = config(a.ident_overrides.clone())
+            .check(&scenario)
+            .map_err(flagged)?;
         let methods: Vec<&str> = valid.methods().iter().map(|m| m.id).collect();
         let outputs = study_outputs(&out, &methods, a.json.as_deref());
         files::refuse_overwriting_inputs(&inputs, &outputs)?;
         files::ensure_dir(&out)?;
         let bar = RunsBar::new("montecarlo", valid.run_indices().len());
-        let result = run_study(&valid, a.threads.map(usize::from), &bar)?;
+        let result = run_study(&valid, a.threads.map(usize::from), &bar).map_err(flagged)?;
         drop(bar);
         return finish(&result, &out, a.json.as_deref());
     };
@@ -144,6 +148,7 @@ fn study(a: StudyArgs) -> Result<()> {
             ident.push(format!("{key}={v}"));
             config(ident)
                 .check(&scenario)
+                .map_err(flagged)
                 .with_context(|| format!("--sweep value {key}={v}"))
         })
         .collect::<Result<Vec<_>>>()?;
@@ -160,7 +165,7 @@ fn study(a: StudyArgs) -> Result<()> {
         let dir = out.join(folder);
         files::ensure_dir(&dir)?;
         let bar = RunsBar::new(&format!("{key}={v}"), valid.run_indices().len());
-        let result = run_study(valid, a.threads.map(usize::from), &bar)?;
+        let result = run_study(valid, a.threads.map(usize::from), &bar).map_err(flagged)?;
         drop(bar);
         let summary = result.write(&dir)?.expect("a sweep runs whole studies");
         write_figures(&summary, &result, &dir)?;
@@ -175,6 +180,18 @@ fn study(a: StudyArgs) -> Result<()> {
         out.join("sweep.csv").display()
     );
     Ok(())
+}
+
+/// A study error as the command line says it: a study setting by its flag.
+fn flagged(e: StudyError) -> anyhow::Error {
+    match e {
+        StudyError::InvalidSetting {
+            setting,
+            value,
+            expected,
+        } => anyhow::anyhow!("--{setting} {value} is not allowed: expected {expected}"),
+        e => e.into(),
+    }
 }
 
 /// The folder of each sweep value inside `--out`: `KEY=VALUE` with every character outside

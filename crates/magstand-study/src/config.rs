@@ -3,7 +3,7 @@
 use magstand_ident::methods::{self, Method};
 use magstand_sim::ValidScenario;
 
-use crate::StudyError;
+use crate::{StudyError, StudySetting};
 
 /// One slice of a study's runs: shard `index` (1-based) of `count`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -21,7 +21,7 @@ impl Shard {
     /// Parses `K/M`.
     pub fn parse(text: &str) -> Result<Self, StudyError> {
         let bad = || StudyError::InvalidSetting {
-            key: "--shard".into(),
+            setting: StudySetting::Shard,
             value: text.into(),
             expected: "K/M with 1 <= K <= M, e.g. 3/10".into(),
         };
@@ -77,14 +77,14 @@ impl StudyConfig {
     pub fn check(self, scenario: &ValidScenario) -> Result<ValidStudy, StudyError> {
         if self.runs < 2 || self.runs > 10_000_000 {
             return Err(StudyError::InvalidSetting {
-                key: "--runs".into(),
+                setting: StudySetting::Runs,
                 value: self.runs.to_string(),
                 expected: "between 2 and 10,000,000 runs (a spread needs at least two)".into(),
             });
         }
         if self.shard.count > self.runs {
             return Err(StudyError::InvalidSetting {
-                key: "--shard".into(),
+                setting: StudySetting::Shard,
                 value: format!("{}/{}", self.shard.index, self.shard.count),
                 expected: format!("at most as many shards as runs ({})", self.runs),
             });
@@ -99,13 +99,13 @@ impl StudyConfig {
             let mut out: Vec<Method> = Vec::new();
             for id in &self.methods {
                 let m = methods::by_id(id).ok_or_else(|| StudyError::InvalidSetting {
-                    key: "--methods".into(),
+                    setting: StudySetting::Methods,
                     value: id.clone(),
                     expected: format!("one of {}", methods::ids()),
                 })?;
                 if m.config.input == magstand_ident::InputKind::Current && !has_current {
                     return Err(StudyError::InvalidSetting {
-                        key: "--methods".into(),
+                        setting: StudySetting::Methods,
                         value: id.clone(),
                         expected: "a method the scenario can feed: current input needs `logging.record_power = true`".into(),
                     });
@@ -193,7 +193,7 @@ mod tests {
         );
         for bad in ["0/3", "4/3", "a/3", "3", "1/0"] {
             let e = Shard::parse(bad).unwrap_err().to_string();
-            assert!(e.contains("--shard") && e.contains(bad), "{bad}: {e}");
+            assert!(e.contains("`shard`") && e.contains(bad), "{bad}: {e}");
         }
     }
 }

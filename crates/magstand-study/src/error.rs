@@ -1,14 +1,47 @@
 use std::path::PathBuf;
 
+/// A setting of a study, named as [`crate::StudyConfig`] and [`crate::run_study`] name it
+/// (a command line maps it to its own flag).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum StudySetting {
+    /// The number of runs of the whole study.
+    Runs,
+    /// The slice of the runs this process runs.
+    Shard,
+    /// The methods compared.
+    Methods,
+    /// The worker threads.
+    Threads,
+}
+
+impl StudySetting {
+    /// The setting's name (`runs`, `shard`, `methods`, `threads`).
+    pub fn name(self) -> &'static str {
+        match self {
+            StudySetting::Runs => "runs",
+            StudySetting::Shard => "shard",
+            StudySetting::Methods => "methods",
+            StudySetting::Threads => "threads",
+        }
+    }
+}
+
+impl std::fmt::Display for StudySetting {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
 /// Everything that can go wrong in a study.
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum StudyError {
     /// A study setting is not allowed.
-    #[error("`{key}` = {value} is not allowed: expected {expected}")]
+    #[error("study setting `{setting}` = {value} is not allowed: expected {expected}")]
     InvalidSetting {
-        /// The setting (flag or key).
-        key: String,
+        /// The setting.
+        setting: StudySetting,
         /// The value given.
         value: String,
         /// What is allowed.

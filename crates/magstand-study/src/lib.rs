@@ -59,7 +59,7 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use rayon::prelude::*;
 
 pub use config::{Shard, StudyConfig, ValidStudy};
-pub use error::StudyError;
+pub use error::{StudyError, StudySetting};
 pub use run::MethodOutcome;
 pub use study_info::StudyInfo;
 pub use summary::Summary;
@@ -97,7 +97,7 @@ pub fn run_study(
     if let Some(t) = threads {
         if t == 0 {
             return Err(StudyError::InvalidSetting {
-                key: "--threads".into(),
+                setting: StudySetting::Threads,
                 value: "0".into(),
                 expected: "at least one thread".into(),
             });
