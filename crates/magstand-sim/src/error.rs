@@ -85,7 +85,7 @@ impl Checker<'_> {
         }
     }
 
-    /// Every component must be finite.
+    /// Every component must be finite and of magnitude at most `max_abs`.
     pub fn within3(&self, key: &str, v: [f64; 3], max_abs: f64) -> Result<(), SimError> {
         if v.iter().all(|&x| magstand_core::within(x, max_abs)) {
             Ok(())

@@ -212,7 +212,13 @@ impl ValidScenario {
         if overrides.is_empty() {
             return Ok(self.clone());
         }
-        let s = Scenario::from_toml_with_overrides(&self.to_toml(), &self.origin, overrides)?;
+        let mut s = Scenario::from_toml_with_overrides(&self.to_toml(), &self.origin, overrides)?;
+        // `to_toml` writes every key out: what is stated is what this scenario stated, and
+        // the keys the overrides set.
+        s.stated = self.scenario.stated.clone();
+        s.stated
+            .0
+            .extend(overrides.iter().flat_map(|o| override_keys(o)));
         let with = format!("{} (with overrides {})", self.origin, overrides.join(", "));
         s.check(&with, None)
     }
@@ -226,6 +232,17 @@ impl ValidScenario {
     pub fn into_inner(self) -> Scenario {
         self.scenario
     }
+}
+
+/// The dotted key an override `key=value` sets and the tables above it
+/// (`motors.dead_zone=0.3` gives `motors` and `motors.dead_zone`; an index is left out).
+fn override_keys(text: &str) -> Vec<String> {
+    let key = text.split_once('=').map_or(text, |(k, _)| k).trim();
+    let parts: Vec<&str> = key
+        .split('.')
+        .map(|p| p.split_once('[').map_or(p, |(name, _)| name))
+        .collect();
+    (1..=parts.len()).map(|n| parts[..n].join(".")).collect()
 }
 
 /// Every dotted key of `table`, tables and their members alike (`motors`, `motors.count`).
@@ -542,6 +559,17 @@ mod tests {
             .unwrap();
         assert!(o.states("motors.spinup_tau_s") && o.states("motors.dead_zone"));
         assert!(!s.with_nothing_stated().states("motors.dead_zone"));
+        // A checked scenario changed by overrides states what it stated and what they set,
+        // not every key its resolved TOML writes out.
+        let v = Scenario::from_toml_str(text, "x")
+            .unwrap()
+            .check("x", None)
+            .unwrap()
+            .with_overrides(&["magnetometer.soft_iron[0]=[1.0,0.0,0.0]".into()])
+            .unwrap();
+        let p = v.params();
+        assert!(p.states("motors.dead_zone") && p.states("magnetometer.soft_iron"));
+        assert!(!p.states("motors.spinup_tau_s") && !p.states("supply.kind"));
     }
 
     /// Regression: a wrong type inside `[program]` was reported at the `[program]` header
