@@ -73,11 +73,3 @@ pub fn scenario_inputs(spec: &str, scenario: &ValidScenario) -> Vec<PathBuf> {
     }
     inputs
 }
-
-/// The files of a Monte Carlo study folder that are read back (by `merge` and `report`).
-pub fn study_inputs(dir: &Path) -> Vec<PathBuf> {
-    ["runs.csv", "study.json"]
-        .iter()
-        .map(|n| dir.join(n))
-        .collect()
-}

@@ -221,11 +221,8 @@ fn sweep_folders(key: &str, values: &[&str]) -> Result<Vec<String>> {
 
 /// Every file a study writes into `out` (and `json`), for the check against its inputs.
 fn study_outputs(out: &Path, methods: &[&str], json: Option<&Path>) -> Vec<PathBuf> {
-    let mut outputs: Vec<PathBuf> = ["runs.csv", "study.json", "SUMMARY.json"]
-        .into_iter()
-        .chain([ERROR_FIGURE])
-        .map(|n| out.join(n))
-        .collect();
+    let mut outputs = StudyResult::files_written(out).to_vec();
+    outputs.push(out.join(ERROR_FIGURE));
     outputs.extend(methods.iter().map(|m| out.join(parameter_figure(m))));
     outputs.extend(json.map(Path::to_path_buf));
     outputs
@@ -246,7 +243,7 @@ fn merge(m: MergeArgs) -> Result<()> {
     let inputs: Vec<PathBuf> = m
         .shards
         .iter()
-        .flat_map(|d| files::study_inputs(d))
+        .flat_map(|d| StudyResult::files_read(d))
         .collect();
     let methods: Vec<&str> = shards
         .first()
@@ -269,8 +266,8 @@ fn finish(result: &StudyResult, out: &Path, json: Option<&Path>) -> Result<()> {
             print!("{}", summary_table(&summary));
             println!(
                 "\nwrote {}, {} and {} figures ({})",
-                out.join("runs.csv").display(),
-                out.join("SUMMARY.json").display(),
+                out.join(magstand_study::RUNS_FILE).display(),
+                out.join(magstand_study::SUMMARY_FILE).display(),
                 figures.len(),
                 figures.join(", ")
             );

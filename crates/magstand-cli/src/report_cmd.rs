@@ -45,7 +45,7 @@ pub fn provenance() -> Vec<(String, String)> {
 }
 
 /// Writes a report into `out` and returns the page's path. No file it writes may be one of
-/// `inputs` (the study folder's files are added here).
+/// `files_read` or the study folder's files.
 #[allow(clippy::too_many_arguments)]
 pub fn write_report(
     files_read: &[&Path],
@@ -76,7 +76,7 @@ pub fn write_report(
     };
     let report = build(&inputs)?;
     let mut read: Vec<PathBuf> = files_read.iter().map(|p| p.to_path_buf()).collect();
-    read.extend(study_dir.map(files::study_inputs).unwrap_or_default());
+    read.extend(study_dir.into_iter().flat_map(StudyResult::files_read));
     let outputs: Vec<PathBuf> = report.file_names().iter().map(|n| out.join(n)).collect();
     files::refuse_overwriting_inputs(&read, &outputs)?;
     files::ensure_dir(out)?;

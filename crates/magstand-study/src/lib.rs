@@ -53,7 +53,7 @@ pub mod runs_csv;
 mod study_info;
 pub mod summary;
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 use rayon::prelude::*;
@@ -128,24 +128,45 @@ pub fn run_study(
     })
 }
 
+/// The table of a study folder: one row per run and method.
+pub const RUNS_FILE: &str = "runs.csv";
+/// What a study folder holds: the study's settings and its shard.
+pub const INFO_FILE: &str = "study.json";
+/// The summary of a whole study.
+pub const SUMMARY_FILE: &str = "SUMMARY.json";
+
 impl StudyResult {
+    /// The files of a study folder [`StudyResult::read`] reads.
+    pub fn files_read(dir: &Path) -> [PathBuf; 2] {
+        [dir.join(RUNS_FILE), dir.join(INFO_FILE)]
+    }
+
+    /// The files [`StudyResult::write`] writes into `dir` (the summary only for a whole study).
+    pub fn files_written(dir: &Path) -> [PathBuf; 3] {
+        [
+            dir.join(RUNS_FILE),
+            dir.join(INFO_FILE),
+            dir.join(SUMMARY_FILE),
+        ]
+    }
+
     /// Writes `runs.csv` and `study.json` into `dir` (which must exist), and `SUMMARY.json`
     /// when the result covers the whole study. Returns the summary when written.
     pub fn write(&self, dir: &Path) -> Result<Option<Summary>, StudyError> {
-        runs_csv::write(&self.outcomes, &dir.join("runs.csv"))?;
-        self.info.write(&dir.join("study.json"))?;
+        runs_csv::write(&self.outcomes, &dir.join(RUNS_FILE))?;
+        self.info.write(&dir.join(INFO_FILE))?;
         if self.info.run_range != [0, self.info.runs] {
             return Ok(None);
         }
         let summary = Summary::new(self.info.clone(), &self.outcomes);
-        write_summary(&summary, &dir.join("SUMMARY.json"))?;
+        write_summary(&summary, &dir.join(SUMMARY_FILE))?;
         Ok(Some(summary))
     }
 
     /// Reads a result written by [`StudyResult::write`].
     pub fn read(dir: &Path) -> Result<Self, StudyError> {
-        let info = StudyInfo::read(&dir.join("study.json"))?;
-        let path = dir.join("runs.csv");
+        let info = StudyInfo::read(&dir.join(INFO_FILE))?;
+        let path = dir.join(RUNS_FILE);
         let outcomes = runs_csv::read(&path)?;
         let malformed = |message: String| StudyError::Malformed {
             path: path.clone(),
