@@ -27,7 +27,7 @@
 
 pub mod atomic_file;
 mod error;
-#[cfg(feature = "file-fuzzing")]
+#[cfg(any(test, feature = "file-fuzzing"))]
 pub mod file_fuzzing;
 pub mod input_file;
 pub mod interpolation;

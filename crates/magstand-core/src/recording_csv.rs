@@ -670,12 +670,7 @@ mod tests {
     }
 
     proptest::proptest! {
-        // A fixed seed: the same cases on every machine and every run (CI never flickers).
-        #![proptest_config(proptest::test_runner::Config {
-            cases: 256,
-            rng_seed: proptest::test_runner::RngSeed::Fixed(0x6d61_6773),
-            ..proptest::test_runner::Config::default()
-        })]
+        #![proptest_config(crate::file_fuzzing::config(256))]
 
         #[test]
         fn arbitrary_text_never_panics(s in "(?s).{0,300}") {
