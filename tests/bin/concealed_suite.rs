@@ -2,22 +2,14 @@
 //! `cargo run --release -p magstand-tests --bin concealed-suite -- [SEEDS [LABEL]]` (default 5
 //! seeds, every case; LABEL keeps the cases whose label contains it; FIRST_SEED and VERBOSE in
 //! the environment start elsewhere and print every candidate).
+use magstand_tests::SuiteArgs;
 use magstand_tests::concealed::{cases, markdown, run_case};
 
 fn main() {
-    let seeds: u64 = std::env::args()
-        .nth(1)
-        .map(|s| s.parse().expect("SEEDS: a whole number"))
-        .unwrap_or(5);
-    // An optional second argument keeps only the cases whose label contains it.
-    let only = std::env::args().nth(2).unwrap_or_default();
-    let first_seed: u64 = std::env::var("FIRST_SEED")
-        .ok()
-        .and_then(|s| s.parse().ok())
-        .unwrap_or(1);
+    let SuiteArgs { seeds, only } = SuiteArgs::from_env(5);
     let mut outcomes = Vec::new();
     for case in cases().into_iter().filter(|c| c.label.contains(&only)) {
-        for seed in first_seed..first_seed + seeds {
+        for seed in seeds.clone() {
             let o = run_case(&case, seed);
             eprintln!(
                 "{:50} seed {seed}: {:?} ({:.1} s)",

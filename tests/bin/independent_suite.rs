@@ -3,22 +3,15 @@
 //! `cargo run --release -p magstand-tests --bin independent-suite -- [SEEDS [LABEL]]`
 //! (default 2 seeds, every case, both modes; LABEL keeps the cases whose label contains it;
 //! FIRST_SEED in the environment starts elsewhere).
+use magstand_tests::SuiteArgs;
 use magstand_tests::independent::{Mode, cases, fit_accuracy, markdown, run_case};
 
 fn main() {
-    let seeds: u64 = std::env::args()
-        .nth(1)
-        .map(|s| s.parse().expect("SEEDS: a whole number"))
-        .unwrap_or(2);
-    let only = std::env::args().nth(2).unwrap_or_default();
-    let first_seed: u64 = std::env::var("FIRST_SEED")
-        .ok()
-        .and_then(|s| s.parse().ok())
-        .unwrap_or(1);
+    let SuiteArgs { seeds, only } = SuiteArgs::from_env(2);
     let mut outcomes = Vec::new();
     for case in cases().into_iter().filter(|c| c.label.contains(&only)) {
         for mode in [Mode::Unstated, Mode::Stated] {
-            for seed in first_seed..first_seed + seeds {
+            for seed in seeds.clone() {
                 let o = run_case(&case, mode, seed);
                 eprintln!(
                     "{:40} {mode:?} seed {seed}: {:?} ({:.1} s)",

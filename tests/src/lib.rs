@@ -41,3 +41,29 @@ pub fn steady_rows(rec: &Recording, settle_s: f64) -> Vec<usize> {
         })
         .collect()
 }
+
+/// The command line of a suite binary: `[SEEDS [LABEL]]`, and `FIRST_SEED` in the environment.
+pub struct SuiteArgs {
+    /// The seeds to run, `FIRST_SEED..FIRST_SEED + SEEDS`.
+    pub seeds: std::ops::Range<u64>,
+    /// Keep only the cases whose label contains this (empty: every case).
+    pub only: String,
+}
+
+impl SuiteArgs {
+    /// Reads the arguments, with `default_seeds` seeds when none are given.
+    pub fn from_env(default_seeds: u64) -> Self {
+        let count: u64 = std::env::args()
+            .nth(1)
+            .map(|s| s.parse().expect("SEEDS: a whole number"))
+            .unwrap_or(default_seeds);
+        let first: u64 = std::env::var("FIRST_SEED")
+            .ok()
+            .and_then(|s| s.parse().ok())
+            .unwrap_or(1);
+        SuiteArgs {
+            seeds: first..first + count,
+            only: std::env::args().nth(2).unwrap_or_default(),
+        }
+    }
+}
