@@ -1,7 +1,7 @@
 //! `magstand simulate`.
 use std::path::PathBuf;
 
-use anyhow::{Context, Result};
+use anyhow::Result;
 use clap::Args;
 
 use crate::files;
@@ -34,18 +34,7 @@ pub struct SimulateArgs {
 
 /// Loads a scenario from a path or `builtin:NAME`, with overrides, and checks it.
 pub fn load_scenario(spec: &str, overrides: &[String]) -> Result<magstand_sim::ValidScenario> {
-    if let Some(name) = spec.strip_prefix("builtin:") {
-        let text = magstand_sim::builtin::get(name).with_context(|| {
-            let names: Vec<&str> = magstand_sim::builtin::ALL.iter().map(|(n, _)| *n).collect();
-            format!(
-                "no shipped scenario `{name}`; shipped: {}",
-                names.join(", ")
-            )
-        })?;
-        Ok(Scenario::from_toml_with_overrides(text, spec, overrides)?.check(spec, None)?)
-    } else {
-        Ok(Scenario::load(std::path::Path::new(spec), overrides)?)
-    }
+    Ok(Scenario::load_spec(spec, overrides)?)
 }
 
 /// Runs `magstand simulate`.

@@ -18,7 +18,10 @@
 //!    effects are found. Candidates are accepted only when the baseline residual fails the
 //!    white-noise test of step 2 (a clean recording stays clean however many candidates are
 //!    tried); what remains structured is reported as "unexplained" with its location rather
-//!    than forced onto a wrong name.
+//!    than forced onto a wrong name. A term that re-fits a stand constant the scenario leaves
+//!    out (a dead zone, a spin-up time) is the stand's calibration, not a finding: it stays in
+//!    the model and is reported under `baseline.calibration`. Only a stated constant the data
+//!    reject, or a lag slower than any spin-up, is named.
 //! 4. **Model it.** The accepted effects switch the matching simulator modules on with the
 //!    fitted values ([`Diagnosis::augmented_scenario`]), and the replayed simulation of that
 //!    scenario is compared with the recording again. The calibrated augmented physics is also
@@ -29,9 +32,12 @@
 //! use magstand_diagnose::{DiagnoseConfig, diagnose};
 //! use magstand_sim::{Scenario, simulate};
 //!
-//! // The recording's stand spins up in 0.3 s; the nominal one assumes 0.06 s.
+//! // The recording's stand spins up in 0.3 s; the scenario states 0.06 s. (A constant the
+//! // scenario leaves out would be calibrated and reported under `baseline.calibration`.)
 //! let stand = r#"
 //!     name = "steps"
+//!     [motors]
+//!     spinup_tau_s = 0.06
 //!     [program]
 //!     kind = "random_steps"
 //!     off_s = 2.0

@@ -383,6 +383,27 @@ impl Scenario {
         Self::from_toml_with_overrides(&text, &origin, overrides)?.check(&origin, Some(&base))
     }
 
+    /// Loads and checks the scenario a command line names: `builtin:NAME` for a shipped
+    /// scenario ([`crate::builtin`]), anything else a file (whose relative references resolve
+    /// against its folder).
+    pub fn load_spec(spec: &str, overrides: &[String]) -> Result<ValidScenario, SimError> {
+        let Some(name) = spec.strip_prefix("builtin:") else {
+            return Self::load(Path::new(spec), overrides);
+        };
+        let text = crate::builtin::get(name).ok_or_else(|| SimError::Parse {
+            origin: spec.into(),
+            message: format!(
+                "no shipped scenario `{name}`; shipped: {}",
+                crate::builtin::ALL
+                    .iter()
+                    .map(|(n, _)| *n)
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ),
+        })?;
+        Self::from_toml_with_overrides(text, spec, overrides)?.check(spec, None)
+    }
+
     /// Checks every value and loads what the scenario refers to.
     pub fn check(
         mut self,

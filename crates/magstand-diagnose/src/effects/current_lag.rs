@@ -3,6 +3,12 @@ use magstand_sim::Scenario;
 use super::{Context, Effect};
 use crate::optimize::Search;
 
+/// The slowest spin-up time constant a motor and propeller have, s. Electric multirotor
+/// motors reach speed in tens of milliseconds; even large (30-inch) propellers stay near
+/// 0.2 s. A current lag calibrated slower than this is not the rotor's inertia but something
+/// else: a filtered current, a slow ESC ramp, a supply that cannot follow.
+pub const MAX_SPINUP_S: f64 = 0.3;
+
 /// Motor current follows a command step through a first-order lag (spin-up) other than the
 /// nominal one.
 pub struct CurrentLag;
@@ -27,6 +33,16 @@ impl Effect for CurrentLag {
     }
     fn stand_constant(&self, s: &Scenario) -> Option<(&'static str, f64)> {
         Some(("motors.spinup_tau_s", s.motors.spinup_tau_s))
+    }
+    fn beyond_calibration(&self, theta: &[f64]) -> Option<String> {
+        (theta[0] > MAX_SPINUP_S).then(|| {
+            format!(
+                "The calibrated lag, {:.3} s, is slower than any motor spin-up ({MAX_SPINUP_S} s at \
+                 most, for the largest propellers): something other than the rotors' inertia \
+                 delays the current (a filtered current, a slow ESC ramp, the supply).",
+                theta[0]
+            )
+        })
     }
     fn apply(&self, _ctx: &Context, s: &mut Scenario, theta: &[f64]) {
         s.motors.spinup_tau_s = theta[0];

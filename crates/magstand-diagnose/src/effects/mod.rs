@@ -115,6 +115,14 @@ pub trait Effect: Sync + Send {
         None
     }
 
+    /// For an effect with a [`stand_constant`](Effect::stand_constant) the scenario leaves
+    /// out: why a fitted value `theta` is not a calibration of that constant but physics of
+    /// its own, to be named (a lag far slower than any motor spin-up). `None`, the default,
+    /// means any value within the search range is the stand's calibration.
+    fn beyond_calibration(&self, _theta: &[f64]) -> Option<String> {
+        None
+    }
+
     /// Changes the replayed physics for nonlinear parameters `theta`.
     fn apply(&self, _ctx: &Context, _scenario: &mut Scenario, _theta: &[f64]) {}
 

@@ -66,7 +66,9 @@ pub(crate) fn assemble(
     }
     let model = model_file(ctx, nominal, cfg, &terms, &last, ctx.command_lead);
     let baseline_model = model_file(ctx, nominal, cfg, &[], &base.model, base.lead);
-    let mut verdict: Vec<String> = terms.iter().map(|t| t.effect.name().to_string()).collect();
+    let (reports, calibrated) = separate_calibration(ctx, &terms, reports);
+    let mut reports = reports;
+    let mut verdict: Vec<String> = reports.iter().map(|r| r.name.clone()).collect();
     if let Some(rest) = unexplained(ctx, &last, rows, cfg) {
         reports.push(rest);
         verdict.push(UNEXPLAINED.into());
@@ -80,7 +82,14 @@ pub(crate) fn assemble(
         recording: origin.into(),
         scenario: nominal.origin().into(),
         verdict,
-        baseline: baseline_report(ctx, base, &base_resid, rows, !terms.is_empty(), cfg),
+        baseline: baseline_report(
+            ctx,
+            base,
+            &base_resid,
+            rows,
+            (!terms.is_empty(), calibrated),
+            cfg,
+        ),
         effects: reports,
         simulation: SimulationAgreement {
             holdout_rmse_before_ut: base_rmse,
@@ -98,6 +107,39 @@ pub(crate) fn assemble(
         model: Some(model),
         baseline_model: Some(baseline_model),
     })
+}
+
+/// Separates the accepted terms that calibrate a stand constant the scenario leaves out from
+/// the findings: the first are reported as calibration, under their scenario key, with value
+/// and sd; the second keep their report, with the stated value beside the fitted one where the
+/// scenario states the constant, and the reason where a calibrated value is physics of its own.
+fn separate_calibration(
+    ctx: &Context,
+    terms: &[Term],
+    reports: Vec<EffectReport>,
+) -> (Vec<EffectReport>, Vec<Param>) {
+    let mut findings = Vec::new();
+    let mut calibrated = Vec::new();
+    for (t, mut report) in terms.iter().zip(reports) {
+        let constant = t.effect.stand_constant(ctx.nominal);
+        if super::forward::calibrates(t.effect, ctx, &t.theta) {
+            let (key, _) = constant.expect("a calibration has a stand constant");
+            calibrated.extend(report.params.into_iter().map(|p| Param { name: key.into(), ..p }));
+            continue;
+        }
+        if let Some((key, stated)) = constant {
+            if ctx.nominal.states(key) {
+                if let Some(fitted) = report.params.first() {
+                    let (name, unit) = (format!("stated_{}", fitted.name), fitted.unit.clone());
+                    report.params.push(Param::new(name, stated, None, &unit));
+                }
+            } else if let Some(why) = t.effect.beyond_calibration(&t.theta) {
+                report.explanation = format!("{} {why}", report.explanation);
+            }
+        }
+        findings.push(report);
+    }
+    (findings, calibrated)
 }
 
 /// The model of `terms` as a model file that compensates recordings of the same stand.
@@ -199,7 +241,7 @@ fn baseline_report(
     base: &BaselineFit,
     base_resid: &[Vec3],
     rows: &Rows,
-    named: bool,
+    (named, calibrated): (bool, Vec<Param>),
     cfg: &DiagnoseConfig,
 ) -> Baseline {
     let split = ctx.split;
@@ -231,6 +273,7 @@ fn baseline_report(
                 None,
                 "fraction of the interval before a row",
             )])
+            .chain(calibrated)
             .collect(),
     }
 }

@@ -125,8 +125,8 @@ const REJECT_STATED_SD: f64 = 3.0;
 /// A candidate that re-fits a stand constant the scenario states (a dead zone, a spin-up
 /// time) stands only where the data reject the stated value: its fit must lie more than
 /// [`REJECT_STATED_SD`] standard uncertainties from it. Otherwise it is kept in the record,
-/// untestable, with why. (A constant the scenario leaves out is still tested by its held-out
-/// gain alone, until it is calibrated with the baseline instead.)
+/// untestable, with why. (A constant the scenario leaves out is tested by its held-out gain
+/// and, when accepted, reported as calibration: see [`calibrates`].)
 fn refuse_within_stated(c: &mut Candidate, effect: &dyn Effect, ctx: &Context) {
     let Some((key, stated)) = effect.stand_constant(ctx.nominal) else {
         return;
@@ -152,6 +152,18 @@ fn refuse_within_stated(c: &mut Candidate, effect: &dyn Effect, ctx: &Context) {
     }
 }
 
+/// Whether an accepted `effect` with parameters `theta` is the calibration of a stand constant
+/// the scenario leaves out (a dead zone, a spin-up time nobody stated) rather than a finding:
+/// such a term stays in the model but is reported under `baseline.calibration`, not named.
+/// The effect's own [`Effect::beyond_calibration`] names the exception (a lag slower than any
+/// spin-up).
+pub(crate) fn calibrates(effect: &dyn Effect, ctx: &Context, theta: &[f64]) -> bool {
+    effect
+        .stand_constant(ctx.nominal)
+        .is_some_and(|(key, _)| !ctx.nominal.states(key))
+        && effect.beyond_calibration(theta).is_none()
+}
+
 /// Runs the forward search over `effects` from the baseline `base`.
 pub(crate) fn forward_search<'e>(
     ctx: &mut Context,
@@ -174,9 +186,10 @@ pub(crate) fn forward_search<'e>(
         // Gatekeeping: the family of candidate tests is opened only when the global test
         // rejects white noise for the baseline, so a clean recording stays clean however many
         // candidates there are (the first round is still tried, for the record). Once there
-        // is a mismatch, later rounds rely on the targeted candidate tests: a transient effect
-        // (a delay at each step) can leave a residual the omnibus test calls white after a
-        // first term, while its own test sees it plainly.
+        // is a mismatch, later rounds rely on the targeted candidate tests (a calibrated
+        // constant included): a transient effect (a delay at each step) can leave a
+        // residual the omnibus test calls white after a first term, while its own test sees
+        // it plainly.
         let white = if rounds.is_empty() {
             base.white
         } else {
