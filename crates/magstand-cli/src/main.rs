@@ -7,6 +7,7 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
+mod check_cmd;
 mod compensate_cmd;
 mod demo;
 mod diagnose_cmd;
@@ -50,6 +51,9 @@ enum Command {
     Report(report_cmd::ReportArgs),
     /// Run the embedded paper-like scenario end to end and print what it shows.
     Demo(demo::DemoArgs),
+    /// Check that the disturbance is still recovered: run the checks of a file (accuracy
+    /// against the truth, diagnosis, firmware export) and fail when a limit is not met.
+    Check(check_cmd::CheckArgs),
 }
 
 fn main() -> ExitCode {
@@ -84,6 +88,7 @@ fn main() -> ExitCode {
         Command::Montecarlo(a) => montecarlo_cmd::run(a),
         Command::Report(a) => report_cmd::run(a),
         Command::Demo(a) => demo::run(a),
+        Command::Check(a) => check_cmd::run(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -76,6 +76,10 @@ pub fn catalog() -> Vec<Method> {
     ]
 }
 
+/// The id of the method `magstand fit` uses when given no options: the automatic structure
+/// on the overall throttle.
+pub const DEFAULT_ID: &str = "automatic";
+
 /// The ids of every named method, comma-separated (for error messages and help).
 pub fn ids() -> String {
     catalog()

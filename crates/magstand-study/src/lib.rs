@@ -60,9 +60,9 @@ use rayon::prelude::*;
 
 pub use config::{Shard, StudyConfig, ValidStudy};
 pub use error::{StudyError, StudySetting};
-pub use run::MethodOutcome;
+pub use run::{MethodOutcome, identification_series};
 pub use study_info::StudyInfo;
-pub use summary::Summary;
+pub use summary::{FIGURE_NAMES, Summary};
 
 /// Receives progress from a running study; kept apart from the study so a command line can
 /// show a bar and a library caller can ignore it. Called from worker threads.

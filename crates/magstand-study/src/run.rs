@@ -72,11 +72,22 @@ pub fn run_scenarios(
     ))
 }
 
+/// The identification series of run `run`: its seed, its scenario (with the run's parameter
+/// draws) and its recording, exactly as the study fits it.
+pub fn identification_series(
+    study: &ValidStudy,
+    run: usize,
+) -> Result<(u64, ValidScenario, Recording), StudyError> {
+    let seed = derive_seed(study.config.seed, run as u64);
+    let (ident_s, _) = run_scenarios(study, seed)?;
+    let ident = magstand_sim::simulate(&ident_s, seed);
+    Ok((seed, ident_s, ident))
+}
+
 /// Runs run `run` of the study.
 pub fn run_one(study: &ValidStudy, run: usize) -> Result<Vec<MethodOutcome>, StudyError> {
-    let seed = derive_seed(study.config.seed, run as u64);
-    let (ident_s, valid_s) = run_scenarios(study, seed)?;
-    let ident = magstand_sim::simulate(&ident_s, seed);
+    let (seed, _, ident) = identification_series(study, run)?;
+    let (_, valid_s) = run_scenarios(study, seed)?;
     let valid = magstand_sim::simulate(&valid_s, derive_seed(seed, 0x7A11D));
     let needs_bound = study.methods.iter().any(|m| m.fixed_structure);
     let bound = if needs_bound {

@@ -25,6 +25,10 @@ pub struct Stats {
     pub p50: f64,
     /// 95th percentile.
     pub p95: f64,
+    /// Smallest value.
+    pub min: f64,
+    /// Largest value (the worst run, for an error).
+    pub max: f64,
 }
 
 impl Stats {
@@ -49,6 +53,8 @@ impl Stats {
             p5: percentile(&v, 0.05),
             p50: percentile(&v, 0.5),
             p95: percentile(&v, 0.95),
+            min: v[0],
+            max: v[n - 1],
         })
     }
 }
@@ -59,6 +65,19 @@ pub fn percentile(sorted: &[f64], q: f64) -> f64 {
     let (lo, hi) = (h.floor() as usize, h.ceil() as usize);
     sorted[lo] + (h - lo as f64) * (sorted[hi] - sorted[lo])
 }
+
+/// The scalar figures of every run and method, as named in runs.csv and SUMMARY.json: the
+/// disturbance RMSE against the truth (norm, then per axis, µT), the eq. 20 error (%), and the
+/// worst level-mean heading error before and after compensation (degrees).
+pub const FIGURE_NAMES: [&str; 7] = [
+    "rmse_ut",
+    "rmse_x_ut",
+    "rmse_y_ut",
+    "rmse_z_ut",
+    "e20_rms_pct",
+    "heading_before_deg",
+    "heading_after_deg",
+];
 
 /// A named figure's stats.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -162,18 +181,20 @@ fn summarize(id: &str, rows: &[&MethodOutcome]) -> MethodSummary {
             stats,
         })
     };
-    let figures = [
-        scalar("rmse_ut", &|f| f.rmse_ut),
-        scalar("rmse_x_ut", &|f| f.rmse_axis_ut[0]),
-        scalar("rmse_y_ut", &|f| f.rmse_axis_ut[1]),
-        scalar("rmse_z_ut", &|f| f.rmse_axis_ut[2]),
-        scalar("e20_rms_pct", &|f| f.e20_rms_pct),
-        scalar("heading_before_deg", &|f| f.heading_before_deg),
-        scalar("heading_after_deg", &|f| f.heading_after_deg),
-    ]
-    .into_iter()
-    .flatten()
-    .collect();
+    let values: [&dyn Fn(&Figures) -> f64; FIGURE_NAMES.len()] = [
+        &|f| f.rmse_ut,
+        &|f| f.rmse_axis_ut[0],
+        &|f| f.rmse_axis_ut[1],
+        &|f| f.rmse_axis_ut[2],
+        &|f| f.e20_rms_pct,
+        &|f| f.heading_before_deg,
+        &|f| f.heading_after_deg,
+    ];
+    let figures = FIGURE_NAMES
+        .iter()
+        .zip(values)
+        .filter_map(|(name, f)| scalar(name, f))
+        .collect();
     let bins = (0..BINS)
         .map(|b| Stats::of(ok.iter().map(|f| f.bin_rmse_ut[b])))
         .collect();

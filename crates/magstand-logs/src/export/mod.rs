@@ -290,28 +290,89 @@ impl LinearFit {
     }
 }
 
+/// An autopilot whose straight-line compensation magstand exports.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Autopilot {
+    /// PX4 power compensation: `CAL_MAG_COMP_TYP`, `CAL_MAGn_{X,Y,Z}COMP` (n from 0 to 3).
+    Px4,
+    /// ArduPilot compassmot: `COMPASS_MOTCT`, `COMPASS_MOT{,2,3}_{X,Y,Z}` (compass 1 to 3).
+    ArduPilot,
+}
+
+impl Autopilot {
+    /// The magnetometer instances the autopilot numbers.
+    pub fn instances(self) -> std::ops::RangeInclusive<usize> {
+        match self {
+            Autopilot::Px4 => 0..=3,
+            Autopilot::ArduPilot => 1..=3,
+        }
+    }
+
+    /// The parameter names for magnetometer `instance`: the type, then x, y and z.
+    pub fn parameter_names(self, instance: usize) -> [String; 4] {
+        match self {
+            Autopilot::Px4 => [
+                "CAL_MAG_COMP_TYP".into(),
+                format!("CAL_MAG{instance}_XCOMP"),
+                format!("CAL_MAG{instance}_YCOMP"),
+                format!("CAL_MAG{instance}_ZCOMP"),
+            ],
+            Autopilot::ArduPilot => {
+                let suffix = if instance <= 1 {
+                    String::new()
+                } else {
+                    instance.to_string()
+                };
+                [
+                    "COMPASS_MOTCT".into(),
+                    format!("COMPASS_MOT{suffix}_X"),
+                    format!("COMPASS_MOT{suffix}_Y"),
+                    format!("COMPASS_MOT{suffix}_Z"),
+                ]
+            }
+        }
+    }
+
+    /// The parameters for `line` on magnetometer `instance`, named as in
+    /// [`parameter_names`](Self::parameter_names), with the values the parameter file holds
+    /// (rounded as written there).
+    pub fn parameters(self, line: &LinearFit, instance: usize) -> [(String, f64); 4] {
+        let (p, digits) = match self {
+            Autopilot::Px4 => (line.px4(), 6),
+            Autopilot::ArduPilot => (line.ardupilot(), 3),
+        };
+        let written = |v: f64| -> f64 {
+            format!("{v:.digits$}")
+                .parse()
+                .expect("a formatted finite number parses")
+        };
+        let [kind, x, y, z] = self.parameter_names(instance);
+        [
+            (kind, f64::from(p.kind)),
+            (x, written(p.coefficients[0])),
+            (y, written(p.coefficients[1])),
+            (z, written(p.coefficients[2])),
+        ]
+    }
+}
+
 /// PX4 parameters in the QGroundControl parameter-file format, for magnetometer `instance`.
 pub fn px4_params(line: &LinearFit, instance: usize) -> String {
-    let p = line.px4();
     let (power, unit) = match line.input {
         LineInput::Current => ("current (battery 0)", "G/kA"),
         LineInput::Throttle => ("throttle", "G per unit throttle"),
     };
+    let [(kind_name, kind), coefficients @ ..] = Autopilot::Px4.parameters(line, instance);
     let mut out = format!(
         "# PX4 magnetometer power compensation exported by magstand {}\n\
-         # CAL_MAG_COMP_TYP {}: {power}; coefficients in {unit}, minus the fitted slope\n\
+         # {kind_name} {kind}: {power}; coefficients in {unit}, minus the fitted slope\n\
          # (PX4 corrects with mag + coefficient x power).\n\
          # Vehicle-Id\tComponent-Id\tName\tValue\tType\n\
-         1\t1\tCAL_MAG_COMP_TYP\t{}\t6\n",
+         1\t1\t{kind_name}\t{kind}\t6\n",
         env!("CARGO_PKG_VERSION"),
-        p.kind,
-        p.kind
     );
-    for (a, axis) in ["X", "Y", "Z"].iter().enumerate() {
-        out += &format!(
-            "1\t1\tCAL_MAG{instance}_{axis}COMP\t{:.6}\t9\n",
-            p.coefficients[a]
-        );
+    for (name, value) in coefficients {
+        out += &format!("1\t1\t{name}\t{value:.6}\t9\n");
     }
     out
 }
@@ -319,25 +380,19 @@ pub fn px4_params(line: &LinearFit, instance: usize) -> String {
 /// ArduPilot parameters as a `.param` file (`NAME,VALUE` lines) for compass `instance` (1, 2
 /// or 3).
 pub fn ardupilot_params(line: &LinearFit, instance: usize) -> String {
-    let p = line.ardupilot();
     let (power, unit) = match line.input {
         LineInput::Current => ("current", "mG per A"),
         LineInput::Throttle => ("throttle", "mG per unit throttle"),
     };
-    let suffix = if instance <= 1 {
-        String::new()
-    } else {
-        instance.to_string()
-    };
+    let [(kind_name, kind), coefficients @ ..] = Autopilot::ArduPilot.parameters(line, instance);
     let mut out = format!(
         "# ArduPilot compassmot parameters exported by magstand {}; {unit}, minus the fitted slope\n\
          # (ArduPilot corrects with field + COMPASS_MOT x {power}).\n\
-         COMPASS_MOTCT,{}\n",
+         {kind_name},{kind}\n",
         env!("CARGO_PKG_VERSION"),
-        p.kind
     );
-    for (a, axis) in ["X", "Y", "Z"].iter().enumerate() {
-        out += &format!("COMPASS_MOT{suffix}_{axis},{:.3}\n", p.coefficients[a]);
+    for (name, value) in coefficients {
+        out += &format!("{name},{value:.3}\n");
     }
     out
 }
