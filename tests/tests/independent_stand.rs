@@ -71,3 +71,64 @@ fn the_default_fit_recovers_a_foreign_disturbance() {
         );
     }
 }
+
+/// Diagnosed as a user without a scenario would: the generator's dead zone (0.12, the
+/// default's is 0.37) and its missing spin-up are unknown constants, calibrated under
+/// `baseline.calibration`, never named; a 0.5 s current lag is slower than any spin-up and
+/// is named.
+///
+/// Regression: before the calibration rule every recording here, the effect-free controls
+/// included, was named `current_lag` and `dead_zone`.
+#[test]
+fn unstated_constants_are_calibrated_and_a_slow_lag_is_still_named() {
+    use magstand_tests::independent::{Mode, run_case};
+    let control = Case {
+        label: "control, bat_v and temp_c logged",
+        effects: vec![],
+        log_bat_v: true,
+        log_temp: true,
+    };
+    let o = run_case(&control, Mode::Unstated, 1);
+    assert!(
+        o.verdict.is_empty(),
+        "control named {:?}\n{}",
+        o.verdict,
+        o.diagnosis.summary()
+    );
+    let calibrated: Vec<&str> = o
+        .diagnosis
+        .baseline
+        .calibration
+        .iter()
+        .map(|p| p.name.as_str())
+        .collect();
+    assert!(
+        calibrated.contains(&"motors.dead_zone"),
+        "the dead zone is not calibrated: {calibrated:?}"
+    );
+    let lag = Case {
+        label: "current lag 0.5 s",
+        effects: vec![magstand_standgen::Effect::CurrentLag { tau_s: 0.5 }],
+        log_bat_v: false,
+        log_temp: false,
+    };
+    let o = run_case(&lag, Mode::Unstated, 2);
+    let tau = o
+        .diagnosis
+        .effects
+        .iter()
+        .find(|e| e.name == "current_lag")
+        .and_then(|e| e.params.first())
+        .map(|p| p.value);
+    assert!(
+        tau.is_some_and(|t| t > magstand_diagnose::effects::MAX_SPINUP_S),
+        "lag {tau:?}: {:?}\n{}",
+        o.verdict,
+        o.diagnosis.summary()
+    );
+    assert!(
+        !o.verdict.iter().any(|n| n == "dead_zone"),
+        "{:?}",
+        o.verdict
+    );
+}

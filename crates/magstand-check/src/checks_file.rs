@@ -350,10 +350,12 @@ impl Entry<'_> {
             }
         };
         let scenario = self.scenario("scenario", &spec, &set)?;
-        let runs = self
-            .integer("runs", 2, 100_000)?
-            .ok_or_else(|| self.error("runs", "missing: expected the number of runs (at least 2, for a spread)"))?
-            as usize;
+        let runs = self.integer("runs", 2, 100_000)?.ok_or_else(|| {
+            self.error(
+                "runs",
+                "missing: expected the number of runs (at least 2, for a spread)",
+            )
+        })? as usize;
         let seed = self
             .integer("seed", 0, i64::MAX)?
             .map_or(scenario.params().seed, |s| s as u64);
@@ -432,7 +434,13 @@ impl Entry<'_> {
         let known = || {
             let mut names: Vec<&str> = FIGURE_NAMES.to_vec();
             names.extend(FIGURE_ALIASES.iter().map(|(a, _)| *a));
-            names.extend(["crlb_ratio", "mse_crlb_ratio", "failures", "diagnose", "export"]);
+            names.extend([
+                "crlb_ratio",
+                "mse_crlb_ratio",
+                "failures",
+                "diagnose",
+                "export",
+            ]);
             names.join(", ")
         };
         let figure = FIGURE_NAMES
@@ -488,10 +496,9 @@ impl Entry<'_> {
                 toml::Value::Float(x) => *x,
                 toml::Value::Integer(n) => *n as f64,
                 v => {
-                    return Err(self.error(
-                        &full,
-                        format!("expected a number, found {}", v.type_str()),
-                    ));
+                    return Err(
+                        self.error(&full, format!("expected a number, found {}", v.type_str()))
+                    );
                 }
             };
             if !(number.is_finite() && number >= 0.0) {

@@ -27,10 +27,7 @@ pub fn junit_xml(origin: &str, outcomes: &[CheckOutcome]) -> Result<String, Chec
                     NonSuccessKind::Failure
                 };
                 let mut s = TestCaseStatus::non_success(kind);
-                s.set_message(format!(
-                    "{} = {} is not {}",
-                    r.key, r.measured, r.bound
-                ));
+                s.set_message(format!("{} = {} is not {}", r.key, r.measured, r.bound));
                 s.set_type(if r.error.is_some() {
                     "could not be measured"
                 } else {

@@ -104,9 +104,9 @@ pub fn run_check(
         if let Some(t) = threads {
             builder = builder.num_threads(t.max(1));
         }
-        let pool = builder.build().map_err(|e| {
-            study_error(magstand_study::StudyError::Threads(e.to_string()))
-        })?;
+        let pool = builder
+            .build()
+            .map_err(|e| study_error(magstand_study::StudyError::Threads(e.to_string())))?;
         let runs: Vec<usize> = (0..check.runs()).collect();
         pool.install(|| {
             runs.par_iter()
@@ -138,10 +138,7 @@ pub fn run_check(
 
 /// Run `run`'s identification recording diagnosed and its fitted model exported, as the
 /// check's limits need.
-fn run_products(
-    check: &ValidCheck,
-    run: usize,
-) -> Result<RunProducts, magstand_study::StudyError> {
+fn run_products(check: &ValidCheck, run: usize) -> Result<RunProducts, magstand_study::StudyError> {
     let (_, _, rec) = identification_series(&check.study, run)?;
     let origin = format!("run {run} identification series");
     let mut products = RunProducts::default();

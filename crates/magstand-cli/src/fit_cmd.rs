@@ -356,3 +356,25 @@ pub fn run(a: FitArgs) -> Result<()> {
     println!("wrote {}", a.model_out.display());
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::Parser;
+
+    #[derive(Parser)]
+    struct Wrapper {
+        #[command(flatten)]
+        fit: FitArgs,
+    }
+
+    /// `magstand check`'s `method = "default"` and the studies' `automatic` stand for what
+    /// `fit` does with no options: the two must not drift apart.
+    #[test]
+    fn the_default_fit_is_the_methods_default_id() {
+        let a = Wrapper::try_parse_from(["fit", "--recording", "r.csv", "--model-out", "m.json"])
+            .unwrap();
+        let default = magstand_ident::methods::by_id(magstand_ident::methods::DEFAULT_ID).unwrap();
+        assert_eq!(config(&a.fit).unwrap(), default.config);
+    }
+}

@@ -19,7 +19,7 @@ mod thermal_drift;
 mod time_offset;
 
 pub use battery_sag::BatterySag;
-pub use current_lag::CurrentLag;
+pub use current_lag::{CurrentLag, MAX_SPINUP_S};
 pub use dead_zone::DeadZone;
 pub use hysteresis::Hysteresis;
 pub use motor_asymmetry::MotorAsymmetry;

@@ -124,7 +124,10 @@ fn separate_calibration(
         let constant = t.effect.stand_constant(ctx.nominal);
         if super::forward::calibrates(t.effect, ctx, &t.theta) {
             let (key, _) = constant.expect("a calibration has a stand constant");
-            calibrated.extend(report.params.into_iter().map(|p| Param { name: key.into(), ..p }));
+            calibrated.extend(report.params.into_iter().map(|p| Param {
+                name: key.into(),
+                ..p
+            }));
             continue;
         }
         if let Some((key, stated)) = constant {
