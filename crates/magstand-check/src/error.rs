@@ -42,8 +42,8 @@ pub enum CheckError {
     Study {
         /// The check.
         check: String,
-        /// What the study said.
-        source: magstand_study::StudyError,
+        /// What the study said (boxed: a study error is large, and rare).
+        source: Box<magstand_study::StudyError>,
     },
     /// The JUnit report could not be serialised.
     #[error("JUnit report: {0}")]

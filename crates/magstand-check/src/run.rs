@@ -79,7 +79,7 @@ pub fn run_check(
 ) -> Result<CheckOutcome, CheckError> {
     let study_error = |source| CheckError::Study {
         check: check.name.clone(),
-        source,
+        source: Box::new(source),
     };
     let total = work_units(check);
     let done = std::sync::atomic::AtomicUsize::new(0);
