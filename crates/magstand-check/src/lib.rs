@@ -69,9 +69,10 @@ pub fn number(v: f64) -> String {
     format!("{v:.decimals$}")
 }
 
-/// The outcomes as a fixed-width table, one row per limit.
+/// The outcomes as a fixed-width table, one row per limit, with the measured value's spread
+/// over the runs.
 pub fn table(outcomes: &[CheckOutcome]) -> String {
-    let rows: Vec<[String; 5]> = outcomes
+    let rows: Vec<[String; 6]> = outcomes
         .iter()
         .flat_map(|c| {
             c.results.iter().map(|r| {
@@ -81,12 +82,20 @@ pub fn table(outcomes: &[CheckOutcome]) -> String {
                     r.bound.clone(),
                     r.measured.clone(),
                     if r.passed { "pass" } else { "FAIL" }.to_string(),
+                    r.spread.clone(),
                 ]
             })
         })
         .collect();
-    let header = ["check", "figure", "limit", "measured", "result"];
-    let widths: Vec<usize> = (0..5)
+    let header = [
+        "check",
+        "figure",
+        "limit",
+        "measured",
+        "result",
+        "spread over the runs",
+    ];
+    let widths: Vec<usize> = (0..6)
         .map(|i| {
             rows.iter()
                 .map(|r| r[i].chars().count())
@@ -95,7 +104,7 @@ pub fn table(outcomes: &[CheckOutcome]) -> String {
                 .unwrap_or(0)
         })
         .collect();
-    let line = |cells: [&str; 5]| -> String {
+    let line = |cells: [&str; 6]| -> String {
         let padded: Vec<String> = cells
             .iter()
             .zip(&widths)
@@ -105,7 +114,7 @@ pub fn table(outcomes: &[CheckOutcome]) -> String {
     };
     let mut out = line(header);
     for r in &rows {
-        out += &line([&r[0], &r[1], &r[2], &r[3], &r[4]]);
+        out += &line([&r[0], &r[1], &r[2], &r[3], &r[4], &r[5]]);
     }
     out
 }
