@@ -22,6 +22,19 @@ pub struct Search {
 }
 
 impl Search {
+    /// Whether `v` lies at the edge of the range: within 2 % of one grid step of `lo` or `hi`
+    /// (where the grid and golden-section search end when the best value is beyond the range,
+    /// so the data do not determine it).
+    pub fn at_bound(&self, v: f64) -> bool {
+        let (u, lo, hi) = (
+            self.unit_of(v),
+            self.unit_of(self.lo),
+            self.unit_of(self.hi),
+        );
+        let step = (hi - lo) / (self.points.max(2) - 1) as f64;
+        (u - lo).abs() < 0.02 * step || (hi - u).abs() < 0.02 * step
+    }
+
     fn unit_of(&self, v: f64) -> f64 {
         if self.log { v.ln() } else { v }
     }

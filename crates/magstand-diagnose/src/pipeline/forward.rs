@@ -152,6 +152,14 @@ fn refuse_within_stated(c: &mut Candidate, effect: &dyn Effect, ctx: &Context) {
     }
 }
 
+/// Where a new term changes the prediction, in noise units.
+fn prediction_change(new: &[Vec3], old: &[Vec3], w: &Weights) -> Vec<Vec3> {
+    standardized(
+        &new.iter().zip(old).map(|(a, b)| a - b).collect::<Vec<_>>(),
+        w,
+    )
+}
+
 /// Whether an accepted `effect` with parameters `theta` is the calibration of a stand constant
 /// the scenario leaves out (a dead zone, a spin-up time nobody stated) rather than a finding:
 /// such a term stays in the model but is reported under `baseline.calibration`, not named.
@@ -162,6 +170,89 @@ pub(crate) fn calibrates(effect: &dyn Effect, ctx: &Context, theta: &[f64]) -> b
         .stand_constant(ctx.nominal)
         .is_some_and(|(key, _)| !ctx.nominal.states(key))
         && effect.beyond_calibration(theta).is_none()
+}
+
+/// Why a significant candidate does not replicate, if it does not. A term is accepted only
+/// when
+///
+/// 1. its nonlinear parameters are not at a search bound (where the data do not determine
+///    them); a calibration of an unstated constant is exempt, since its range is the physical
+///    one;
+/// 2. its held-out gain holds in each half of the recording on its own (p below the
+///    significance, gain positive): structure confined to one stretch is not a property of
+///    the stand;
+/// 3. its fitted model lowers the held-out error on each axis where it changes the prediction
+///    (the axes it claims).
+///
+/// `change` is the prediction change in noise units, `located` where it is significant.
+fn replication_failure(
+    ctx: &Context,
+    effect: &dyn Effect,
+    c: &Candidate,
+    before: &[Vec3],
+    weights: &Weights,
+    located: &crate::locate::Location,
+    cfg: &DiagnoseConfig,
+) -> Option<String> {
+    let (theta, _, fitted) = c.fitted.as_ref()?;
+    if !calibrates(effect, ctx, theta) {
+        for (search, v) in effect.search(ctx).iter().zip(theta) {
+            if search.at_bound(*v) {
+                return Some(format!(
+                    "refused: its {} = {v:.4} lies at the edge of its search range [{}, {}], so the data do not determine it",
+                    search.name, search.lo, search.hi
+                ));
+            }
+        }
+    }
+    let after = fitted.residuals(&ctx.rec.mag_ut);
+    let held: Vec<usize> = {
+        let mut b: Vec<usize> = (0..ctx.split.block.len())
+            .filter(|&r| ctx.split.holdout[r])
+            .map(|r| ctx.split.block[r])
+            .collect();
+        b.dedup();
+        b
+    };
+    let middle = held.get(held.len() / 2).copied().unwrap_or(0);
+    for (half, in_half) in [
+        ("first", &(|b: usize| b < middle) as &dyn Fn(usize) -> bool),
+        ("second", &|b: usize| b >= middle),
+    ] {
+        let split = crate::split::Split {
+            holdout: ctx
+                .split
+                .holdout
+                .iter()
+                .zip(&ctx.split.block)
+                .map(|(h, b)| *h && in_half(*b))
+                .collect(),
+            ..ctx.split.clone()
+        };
+        let blocks = block_improvements(before, &after, weights, &split);
+        let gain = blocks.iter().sum::<f64>() / blocks.len().max(1) as f64;
+        let p = gain_p_value(&blocks, before, &after, weights, &split);
+        if !(gain > 0.0 && p.is_some_and(|p| p < cfg.significance)) {
+            return Some(format!(
+                "refused: its held-out gain does not hold in the {half} half of the recording on its own (mean gain {gain:.3}, p = {}; needed p < {})",
+                p.map_or("-".into(), |p| format!("{p:.2e}")),
+                cfg.significance
+            ));
+        }
+    }
+    let (rmse_before, rmse_after) = (
+        holdout_rmse(before, &ctx.split.holdout),
+        holdout_rmse(&after, &ctx.split.holdout),
+    );
+    for (a, axis) in magstand_core::AXES.iter().enumerate() {
+        if located.axes.iter().any(|x| x == axis) && rmse_after[a] >= rmse_before[a] {
+            return Some(format!(
+                "refused: it changes the prediction on {axis} but does not lower the held-out error there ({:.4} -> {:.4} µT)",
+                rmse_before[a], rmse_after[a]
+            ));
+        }
+    }
+    None
 }
 
 /// Runs the forward search over `effects` from the baseline `base`.
@@ -217,46 +308,50 @@ pub(crate) fn forward_search<'e>(
         }
         let k = tried.iter().filter(|c| c.fitted.is_some()).count().max(1);
         let threshold = cfg.significance / k as f64;
-        let best = tried
-            .iter()
-            .enumerate()
+        let mut significant: Vec<usize> = (0..tried.len())
             .filter(|_| structured)
-            .filter(|(_, c)| c.result.p_value.is_some_and(|p| p < threshold))
-            .filter(|(_, c)| c.result.improvement.is_some_and(|i| i > 0.0))
-            .max_by(|a, b| {
-                a.1.result
-                    .improvement
-                    .partial_cmp(&b.1.result.improvement)
-                    .unwrap_or(std::cmp::Ordering::Equal)
-            })
-            .map(|(i, _)| i);
+            .filter(|&i| tried[i].result.p_value.is_some_and(|p| p < threshold))
+            .filter(|&i| tried[i].result.improvement.is_some_and(|g| g > 0.0))
+            .collect();
+        significant.sort_by(|&a, &b| {
+            tried[b]
+                .result
+                .improvement
+                .partial_cmp(&tried[a].result.improvement)
+                .unwrap_or(std::cmp::Ordering::Equal)
+        });
+        // The most significant gain that replicates is accepted; each one before it that does
+        // not says why in its round.
+        let mut best = None;
+        for i in significant {
+            let fitted = &tried[i].fitted.as_ref().expect("a p-value means fitted").2;
+            let change = prediction_change(&fitted.pred, &cur_fit.pred, w);
+            let located = locate(rows, &change, &all_rows, Signal::Change, cfg.significance);
+            match replication_failure(shared, open[i], &tried[i], &before, w, &located, cfg) {
+                Some(why) => tried[i].result.note = Some(why),
+                None => {
+                    best = Some((i, located));
+                    break;
+                }
+            }
+        }
         let round = Round {
             threshold,
             candidates: tried.iter().map(|c| c.result.clone()).collect(),
-            accepted: best.map(|i| open[i].name().to_string()),
+            accepted: best.as_ref().map(|(i, _)| open[*i].name().to_string()),
             whiteness_p: Some(white),
         };
-        let Some(i) = best else {
+        let Some((i, located)) = best else {
             rounds.push(round);
             break;
         };
         let (theta, theta_sd, fitted) = tried[i].fitted.clone().expect("accepted means fitted");
         let after = fitted.residuals(y);
-        // Where the new term changes the prediction, in noise units.
-        let change: Vec<Vec3> = standardized(
-            &fitted
-                .pred
-                .iter()
-                .zip(&cur_fit.pred)
-                .map(|(a, b)| a - b)
-                .collect::<Vec<_>>(),
-            w,
-        );
         reports.push(EffectReport {
             name: open[i].name().into(),
             params: Vec::new(),
             explanation: open[i].explanation().into(),
-            located: locate(rows, &change, &all_rows, Signal::Change, cfg.significance),
+            located,
             holdout_rmse_before_ut: holdout_rmse(&before, &ctx.split.holdout),
             holdout_rmse_after_ut: holdout_rmse(&after, &ctx.split.holdout),
             p_value: tried[i].result.p_value.unwrap_or(1.0),
