@@ -37,7 +37,9 @@ pub mod recording_csv;
 pub mod seeds;
 
 pub use error::CoreError;
-pub use recording::{GroundTruth, ImuColumns, Recording};
+pub use recording::{
+    GAP_INTERVALS, GroundTruth, ImuColumns, Recording, rows_after_gaps, typical_interval_s,
+};
 
 /// Whether `v` is a finite number of magnitude at most `limit`: the test every reader and
 /// writer of magstand's files applies to a number before it is used or written (a NaN fails).

@@ -93,12 +93,7 @@ impl Recording {
     /// fewer than two rows). Unlike the mean it ignores the long gaps of a log that holds
     /// several flights, which would make a 10 Hz log look like a 1 Hz one.
     pub fn typical_interval_s(&self) -> f64 {
-        let mut d: Vec<f64> = self.t_s.windows(2).map(|w| w[1] - w[0]).collect();
-        if d.is_empty() {
-            return 0.0;
-        }
-        let mid = d.len() / 2;
-        *d.select_nth_unstable_by(mid, f64::total_cmp).1
+        typical_interval_s(&self.t_s)
     }
 
     /// Keeps only the rows whose index satisfies `keep`, in every column.
@@ -197,4 +192,28 @@ impl Recording {
         }
         Ok(())
     }
+}
+
+/// Typical interval of sample times `t_s`: the median of the intervals (0 for fewer than two
+/// samples).
+pub fn typical_interval_s(t_s: &[f64]) -> f64 {
+    let mut d: Vec<f64> = t_s.windows(2).map(|w| w[1] - w[0]).collect();
+    if d.is_empty() {
+        return 0.0;
+    }
+    let mid = d.len() / 2;
+    *d.select_nth_unstable_by(mid, f64::total_cmp).1
+}
+
+/// An interval longer than this many typical intervals is a gap (as `magstand import` reports
+/// them): a log holding several flights, or a logger that stopped.
+pub const GAP_INTERVALS: f64 = 5.0;
+
+/// The rows of `t_s` that follow a gap (an interval longer than [`GAP_INTERVALS`] typical
+/// intervals): each starts a new stretch of continuous data.
+pub fn rows_after_gaps(t_s: &[f64]) -> Vec<usize> {
+    let gap_s = GAP_INTERVALS * typical_interval_s(t_s);
+    (1..t_s.len())
+        .filter(|&r| t_s[r] - t_s[r - 1] > gap_s)
+        .collect()
 }

@@ -270,6 +270,7 @@ impl AugmentedModel {
             nominal_trace: &nominal_trace,
             rec_origin: origin.into(),
             command_lead: self.command_lead,
+            flight: false,
         };
         // Each effect's parameters as its own search defines them: as many as it searches,
         // finite, positive where it searches on a log scale, and within ten times its range.

@@ -153,6 +153,10 @@ pub struct Diagnosis {
     pub settings: Settings,
     /// The augmented scenario (TOML), with every accepted effect switched on.
     pub augmented_scenario: String,
+    /// What makes the diagnosis doubtful, in words (a flight's preparation: rows left out, an
+    /// Earth field poorly determined, a delay at its limit). Absent in older files.
+    #[serde(default)]
+    pub warnings: Vec<String>,
     /// The calibrated augmented physics as a model `compensate` can use (written to its own
     /// file, not into the diagnosis file).
     #[serde(skip)]
@@ -190,6 +194,9 @@ impl Diagnosis {
     pub fn summary(&self) -> String {
         let f3 = |v: [f64; 3]| format!("{:.3} {:.3} {:.3}", v[0], v[1], v[2]);
         let mut s = String::new();
+        for w in &self.warnings {
+            s.push_str(&format!("warning: {w}\n"));
+        }
         if self.verdict.is_empty() {
             s.push_str("verdict: no significant mismatch (residuals are white noise)\n");
         } else {

@@ -19,14 +19,32 @@ pub struct Split {
 impl Split {
     /// Blocks of `block_s` (or 1/150 of the duration, kept in 0.5..10 s); every
     /// `holdout_every`-th block, starting with the last of the first group, is held out.
+    ///
+    /// A gap in the data (a log holding two flights) is a boundary, not a long stretch of
+    /// time: the duration counts only the time with data, and a new block starts after each
+    /// gap, so no block spans one.
     pub fn new(t_s: &[f64], block_s: Option<f64>, holdout_every: usize) -> Split {
-        let t0 = t_s.first().copied().unwrap_or(0.0);
-        let duration = t_s.last().copied().unwrap_or(0.0) - t0;
+        let starts = magstand_core::rows_after_gaps(t_s);
+        // Time with data: every gap closed to nothing.
+        let mut active = Vec::with_capacity(t_s.len());
+        let mut closed = 0.0;
+        for (r, &t) in t_s.iter().enumerate() {
+            if r > 0 && starts.binary_search(&r).is_ok() {
+                closed += t - t_s[r - 1];
+            }
+            active.push(t - t_s[0] - closed);
+        }
+        let duration = active.last().copied().unwrap_or(0.0);
         let block_s = block_s.unwrap_or((duration / 150.0).clamp(0.5, 10.0));
-        let block: Vec<usize> = t_s
-            .iter()
-            .map(|&t| ((t - t0) / block_s).floor() as usize)
-            .collect();
+        let mut block: Vec<usize> = Vec::with_capacity(t_s.len());
+        let mut offset = 0;
+        for (r, a) in active.iter().enumerate() {
+            let b = (a / block_s).floor() as usize + offset;
+            if r > 0 && starts.binary_search(&r).is_ok() && b <= block[r - 1] {
+                offset += block[r - 1] + 1 - b;
+            }
+            block.push((a / block_s).floor() as usize + offset);
+        }
         let holdout = block
             .iter()
             .map(|b| b % holdout_every == holdout_every - 1)
@@ -75,5 +93,30 @@ mod tests {
         let held = s.holdout.iter().filter(|h| **h).count();
         assert!((990..=1010).contains(&held), "rows held out: {held}");
         assert!(!s.holdout[0] && s.holdout[40] && !s.holdout[60]);
+    }
+
+    #[test]
+    fn a_gap_is_a_block_boundary_and_not_time() {
+        // Two 100 s flights at 10 Hz, ten minutes apart.
+        let mut t: Vec<f64> = (0..1000).map(|k| k as f64 * 0.1).collect();
+        t.extend((0..1000).map(|k| 700.0 + k as f64 * 0.1));
+        let s = Split::new(&t, None, 3);
+        assert!(
+            (s.block_s - (199.9 - 0.1) / 150.0).abs() < 0.01,
+            "block {} s: the gap counted as time",
+            s.block_s
+        );
+        assert!(
+            s.block[1000] > s.block[999],
+            "blocks {} and {} span the gap",
+            s.block[999],
+            s.block[1000]
+        );
+        let blocks = s
+            .block
+            .iter()
+            .collect::<std::collections::BTreeSet<_>>()
+            .len();
+        assert!((149..=152).contains(&blocks), "{blocks} blocks");
     }
 }

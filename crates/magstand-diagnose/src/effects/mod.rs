@@ -42,6 +42,9 @@ pub struct Context<'a> {
     /// the previous sample, 1: at the row), calibrated with the baseline: logs differ in
     /// whether commands are stamped when issued or when sampled.
     pub command_lead: f64,
+    /// Whether the recording is a flight, whose Earth field, offset and magnetometer delay
+    /// the baseline already took out.
+    pub flight: bool,
 }
 
 /// A fitted parameter with its unit and standard uncertainty.

@@ -14,6 +14,10 @@ impl Effect for TimeOffset {
         "The magnetometer samples are time-stamped late against the motor commands (logging \
          latency), so every change in the field appears a fixed time after its cause."
     }
+    fn applies(&self, ctx: &Context) -> bool {
+        // A flight's baseline calibrates the delay (`flight.mag_delay_s`).
+        !ctx.flight
+    }
     fn search(&self, ctx: &Context) -> Vec<Search> {
         // From one sample interval (shorter delays cannot be told from where in the interval
         // a logged command changed, which the baseline calibrates) to half a second, in steps

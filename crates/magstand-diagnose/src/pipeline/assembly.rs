@@ -104,6 +104,7 @@ pub(crate) fn assemble(
             rows: [split.fit_rows(), rec.len() - split.fit_rows()],
         },
         augmented_scenario: augmented.to_toml(),
+        warnings: Vec::new(),
         model: Some(model),
         baseline_model: Some(baseline_model),
     })

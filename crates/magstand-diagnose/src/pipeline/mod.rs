@@ -11,8 +11,10 @@
 //! 5. [`assembly`]: the final joint model, the augmented scenario and its simulation, what
 //!    remains unexplained, and the diagnosis and model files.
 //!
-//! [`diagnose`] checks the recording against the nominal stand, calibrates the baseline and
-//! runs the stages in that order.
+//! A flight log first goes through [`flight`]: the Earth field turned by the logged attitude,
+//! the sensor offset and the magnetometer's delay are taken out, and the stand-equivalent
+//! recording is diagnosed. [`diagnose`] then checks the recording against the nominal stand,
+//! calibrates the baseline and runs the stages in order.
 use magstand_core::Recording;
 use magstand_sim::replay::{Trace, replay};
 use magstand_sim::{Scenario, ValidScenario};
@@ -26,6 +28,7 @@ use crate::{DiagnoseConfig, DiagnoseError, ValidConfig};
 
 pub(crate) mod assembly;
 pub(crate) mod design;
+pub(crate) mod flight;
 pub(crate) mod forward;
 pub(crate) mod gain;
 pub(crate) mod refine;
@@ -43,6 +46,20 @@ pub fn diagnose(
     config: &ValidConfig,
 ) -> Result<Diagnosis, DiagnoseError> {
     let cfg = config.params();
+    let flight = flight::flight_baseline(rec, origin)?;
+    let rec = flight.as_ref().map_or(rec, |f| &f.recording);
+    // A motor count nobody stated is the recording's own.
+    let counted;
+    let nominal = match rec.motor_count() {
+        n if n > 1
+            && n != nominal.params().motors.count
+            && !nominal.params().states("motors.count") =>
+        {
+            counted = nominal.with_overrides(&[format!("motors.count={n}")])?;
+            &counted
+        }
+        _ => nominal,
+    };
     let (scenario, split, nominal_trace) = prepare(rec, origin, nominal, cfg)?;
     let mut ctx = Context {
         rec,
@@ -51,12 +68,18 @@ pub fn diagnose(
         nominal_trace: &nominal_trace,
         rec_origin: origin.to_string(),
         command_lead: 0.5,
+        flight: flight.is_some(),
     };
     let base = calibrate_baseline(&mut ctx, cfg)?;
     let rows = Rows::new(rec, &split.block);
     let effects = catalog();
     let outcome = forward::forward_search(&mut ctx, &effects, &base, &rows, cfg)?;
-    assembly::assemble(&ctx, nominal, &base, outcome, &rows, cfg)
+    let mut d = assembly::assemble(&ctx, nominal, &base, outcome, &rows, cfg)?;
+    if let Some(f) = flight {
+        d.baseline.calibration.extend(f.calibration);
+        d.warnings = f.warnings;
+    }
+    Ok(d)
 }
 
 /// Checks that the recording fits the nominal stand and is long enough to hold out, and
