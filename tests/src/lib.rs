@@ -2,6 +2,7 @@
 
 pub mod concealed;
 pub mod independent;
+pub mod semireal;
 use magstand_core::Recording;
 use magstand_sim::{Scenario, ValidScenario, simulate};
 
