@@ -374,7 +374,7 @@ pub fn run_log(log: &RealLog, injections: &[Injection]) -> Vec<Outcome> {
                 .as_ref()
                 .ok()
                 .map(|d| judge(&original, d, inj, rec.typical_interval_s())),
-            verdict: d.map(|d| d.verdict).map_err(|e| e),
+            verdict: d.map(|d| d.verdict),
             seconds,
         });
     }

@@ -92,14 +92,44 @@ fn too_large(len: u64, max_bytes: u64) -> io::Error {
 /// Reads all of `path` (see [`open`]); a file that grows past the limit while being read is
 /// refused too.
 pub fn read(path: &Path, max_bytes: u64) -> io::Result<Vec<u8>> {
-    let mut out = Vec::new();
-    open(path, max_bytes)?
-        .take(max_bytes + 1)
-        .read_to_end(&mut out)?;
+    let file = open(path, max_bytes)?;
+    #[cfg(unix)]
+    if let Some(whole) = read_in_halves(&file, max_bytes) {
+        return Ok(whole);
+    }
+    // The whole size up front: `take` hides it from `read_to_end`, which would otherwise grow
+    // the buffer by doubling and copy the file several times over.
+    let size = file.metadata().map_or(0, |m| m.len().min(max_bytes));
+    let mut out = Vec::with_capacity(usize::try_from(size).unwrap_or(0).saturating_add(1));
+    file.take(max_bytes + 1).read_to_end(&mut out)?;
     if out.len() as u64 > max_bytes {
         return Err(too_large(out.len() as u64, max_bytes));
     }
     Ok(out)
+}
+
+/// Files at least this large are read by two threads, each its half (a long recording: the
+/// page-cache copy is a third of the time it takes to read one).
+const HALVES_FROM_BYTES: u64 = 16 << 20;
+
+/// A large file read as two halves at once, or `None` (a small file, a file whose size
+/// changed while it was read, or any error: the caller reads it in order instead).
+#[cfg(unix)]
+fn read_in_halves(file: &std::fs::File, max_bytes: u64) -> Option<Vec<u8>> {
+    use std::os::unix::fs::FileExt;
+    let size = file.metadata().ok()?.len();
+    if !(HALVES_FROM_BYTES..=max_bytes).contains(&size) {
+        return None;
+    }
+    let mut whole = vec![0u8; usize::try_from(size).ok()?];
+    let half = whole.len() / 2;
+    let (first, second) = whole.split_at_mut(half);
+    let (a, b) = rayon::join(
+        || file.read_exact_at(first, 0),
+        || file.read_exact_at(second, half as u64),
+    );
+    let mut beyond = [0u8; 1];
+    (a.is_ok() && b.is_ok() && file.read_at(&mut beyond, size).ok()? == 0).then_some(whole)
 }
 
 /// Reads all of `path` as UTF-8 text (see [`read`]).
@@ -124,6 +154,19 @@ pub fn read_document(path: &Path) -> io::Result<String> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_large_file_read_in_halves_is_the_file() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("long.csv");
+        let bytes: Vec<u8> = (0..(HALVES_FROM_BYTES + 12_345))
+            .map(|k| (k % 251) as u8)
+            .collect();
+        std::fs::write(&p, &bytes).unwrap();
+        assert!(read(&p, HALVES_FROM_BYTES + 12_345).unwrap() == bytes);
+        let e = read(&p, HALVES_FROM_BYTES).unwrap_err().to_string();
+        assert!(e.contains("more than"), "{e}");
+    }
 
     #[test]
     fn devices_directories_and_large_files_are_refused_by_name() {

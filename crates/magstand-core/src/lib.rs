@@ -27,6 +27,7 @@
 
 pub mod atomic_file;
 mod error;
+mod fast_csv;
 #[cfg(any(test, feature = "file-fuzzing"))]
 pub mod file_fuzzing;
 pub mod input_file;

@@ -28,19 +28,33 @@ use crate::recording::{GroundTruth, ImuColumns, Recording};
 use crate::{AXES, CoreError, Quat, Vec3};
 
 /// Reads a recording from a CSV file.
+///
+/// The file is read whole and its rows parsed on every core by a reader for the plain form
+/// magstand and most tools write (no quoted cells); anything else, and every error, goes
+/// through the general CSV reader, whose messages name the row, the column and the cell.
 pub fn read(path: impl AsRef<Path>) -> Result<Recording, CoreError> {
     let path = path.as_ref();
-    let file = crate::input_file::open(path, crate::input_file::MAX_RECORDING_BYTES)
+    let bytes = crate::input_file::read(path, crate::input_file::MAX_RECORDING_BYTES)
         .map_err(|e| CoreError::io(path, e))?;
-    read_from(
-        std::io::BufReader::new(file).take(crate::input_file::MAX_RECORDING_BYTES),
-        path,
-    )
+    read_bytes(&bytes, path)
 }
 
 /// Reads a recording from CSV text; `origin` names it in error messages.
 pub fn read_str(text: &str, origin: impl AsRef<Path>) -> Result<Recording, CoreError> {
-    read_from(text.as_bytes(), origin.as_ref())
+    read_bytes(text.as_bytes(), origin.as_ref())
+}
+
+fn read_bytes(bytes: &[u8], path: &Path) -> Result<Recording, CoreError> {
+    match crate::fast_csv::read(bytes, path) {
+        Some(rec) => Ok(rec),
+        None => read_general(bytes, path),
+    }
+}
+
+/// The general reader alone (any CSV the `csv` crate reads, with messages that name the row,
+/// the column and the cell).
+pub(crate) fn read_general(bytes: &[u8], path: &Path) -> Result<Recording, CoreError> {
+    read_from(bytes, path)
 }
 
 /// Column lookup over one header, with the file name for its errors.
@@ -124,21 +138,48 @@ fn parse_cell(path: &Path, row: usize, column: &str, cell: &str) -> Result<f64, 
     }
 }
 
-fn read_from(reader: impl Read, path: &Path) -> Result<Recording, CoreError> {
-    let mut csv = csv::ReaderBuilder::new()
-        .has_headers(true)
-        .from_reader(reader);
-    let csv_err = |row: usize, e: csv::Error| CoreError::Csv {
-        path: path.to_path_buf(),
-        row,
-        message: e.to_string(),
-    };
-    let names: Vec<String> = csv
-        .headers()
-        .map_err(|e| csv_err(0, e))?
-        .iter()
-        .map(|s| s.trim().to_string())
-        .collect();
+/// Where each part of a recording sits in a file's columns.
+pub(crate) struct Layout {
+    pub names: Vec<String>,
+    pub t_col: usize,
+    pub thr_cols: Vec<usize>,
+    pub thr_names: Vec<String>,
+    pub overall_only: bool,
+    pub mag_cols: [usize; 3],
+    pub bat_v: Option<usize>,
+    pub bat_a: Option<usize>,
+    pub temp_c: Option<usize>,
+    pub acc: Option<[usize; 3]>,
+    pub gyr: Option<[usize; 3]>,
+    pub att: Option<[usize; 4]>,
+    pub truth: Option<[[usize; 3]; 3]>,
+    pub extra_cols: Vec<usize>,
+}
+
+impl Layout {
+    /// An empty recording with this layout's columns.
+    pub fn empty_recording(&self) -> Recording {
+        Recording {
+            thr: vec![Vec::new(); self.thr_cols.len()],
+            overall_only: self.overall_only,
+            bat_v: self.bat_v.map(|_| Vec::new()),
+            bat_a: self.bat_a.map(|_| Vec::new()),
+            temp_c: self.temp_c.map(|_| Vec::new()),
+            imu: (self.acc.is_some() || self.gyr.is_some()).then(ImuColumns::default),
+            attitude: self.att.map(|_| Vec::new()),
+            truth: self.truth.map(|_| GroundTruth::default()),
+            extra: self
+                .extra_cols
+                .iter()
+                .map(|&i| (self.names[i].clone(), Vec::new()))
+                .collect(),
+            ..Recording::default()
+        }
+    }
+}
+
+/// The layout of a header's column names.
+pub(crate) fn layout(names: Vec<String>, path: &Path) -> Result<Layout, CoreError> {
     if names.iter().all(|n| n.is_empty()) {
         return Err(CoreError::Csv {
             path: path.to_path_buf(),
@@ -248,21 +289,57 @@ fn read_from(reader: impl Read, path: &Path) -> Result<Recording, CoreError> {
     } else {
         (1..=thr_cols.len()).map(|i| format!("thr_{i}")).collect()
     };
-    let mut rec = Recording {
-        thr: vec![Vec::new(); thr_cols.len()],
+    Ok(Layout {
+        names,
+        t_col,
+        thr_cols,
+        thr_names,
         overall_only,
-        bat_v: bat_v.map(|_| Vec::new()),
-        bat_a: bat_a.map(|_| Vec::new()),
-        temp_c: temp_c.map(|_| Vec::new()),
-        imu: (acc.is_some() || gyr.is_some()).then(ImuColumns::default),
-        attitude: att.map(|_| Vec::new()),
-        truth: truth.map(|_| GroundTruth::default()),
-        extra: extra_cols
-            .iter()
-            .map(|&i| (names[i].clone(), Vec::new()))
-            .collect(),
-        ..Recording::default()
+        mag_cols,
+        bat_v,
+        bat_a,
+        temp_c,
+        acc,
+        gyr,
+        att,
+        truth,
+        extra_cols,
+    })
+}
+
+fn read_from(reader: impl Read, path: &Path) -> Result<Recording, CoreError> {
+    let mut csv = csv::ReaderBuilder::new()
+        .has_headers(true)
+        .from_reader(reader);
+    let csv_err = |row: usize, e: csv::Error| CoreError::Csv {
+        path: path.to_path_buf(),
+        row,
+        message: e.to_string(),
     };
+    let names: Vec<String> = csv
+        .headers()
+        .map_err(|e| csv_err(0, e))?
+        .iter()
+        .map(|s| s.trim().to_string())
+        .collect();
+    let lay = layout(names, path)?;
+    let mut rec = lay.empty_recording();
+    let Layout {
+        names,
+        t_col,
+        thr_cols,
+        thr_names,
+        overall_only: _,
+        mag_cols,
+        bat_v,
+        bat_a,
+        temp_c,
+        acc,
+        gyr,
+        att,
+        truth,
+        extra_cols,
+    } = lay;
     let mut record = csv::StringRecord::new();
     let mut row = 0usize;
     loop {

@@ -126,8 +126,7 @@ fn a_flight_without_attitude_is_refused() {
         &unstated_nominal().unwrap(),
         &DiagnoseConfig::default().check().unwrap(),
     )
-    .err()
-    .expect("a flight without attitude was diagnosed");
+    .expect_err("a flight without attitude was diagnosed");
     let m = e.to_string();
     assert!(
         m.contains("flight.csv") && m.contains("att_qw") && m.contains("flight"),
