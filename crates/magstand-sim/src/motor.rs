@@ -87,6 +87,12 @@ impl MotorParams {
         Ok(())
     }
 
+    /// The fraction of the way to its target speed a rotor covers in `dt_s`: the exact
+    /// discretization of the spin-up lag, stable for any step.
+    pub fn spinup_alpha(&self, dt_s: f64) -> f64 {
+        1.0 - (-dt_s / self.spinup_tau_s).exp()
+    }
+
     /// Torque constant Kt = Ke, N m per A (and V s per rad).
     pub fn torque_constant(&self) -> f64 {
         60.0 / (2.0 * std::f64::consts::PI * self.kv_rpm_per_v)
@@ -152,12 +158,24 @@ pub struct MotorState {
 impl MotorState {
     /// Advances one motor by `dt_s` under `command` at supply `voltage_v`.
     pub fn step(&mut self, p: &MotorParams, motor: usize, command: f64, voltage_v: f64, dt_s: f64) {
+        self.step_electrical(p, motor, command, voltage_v, p.spinup_alpha(dt_s));
+        self.angle_rad = (self.angle_rad + self.speed_rad_s * dt_s) % std::f64::consts::TAU;
+    }
+
+    /// Advances speed and current only (not the rotor angle, which only the rigid body
+    /// needs), with the lag factor `alpha` = [`MotorParams::spinup_alpha`] of the step: the
+    /// replay of a recording steps every motor by the same interval.
+    pub fn step_electrical(
+        &mut self,
+        p: &MotorParams,
+        motor: usize,
+        command: f64,
+        voltage_v: f64,
+        alpha: f64,
+    ) {
         let duty = p.duty(command);
         let target = p.steady_speed(motor, duty, voltage_v);
-        // Exact discretization of the first-order lag: stable for any dt.
-        let alpha = 1.0 - (-dt_s / p.spinup_tau_s).exp();
         self.speed_rad_s += (target - self.speed_rad_s) * alpha;
-        self.angle_rad = (self.angle_rad + self.speed_rad_s * dt_s) % std::f64::consts::TAU;
         self.current_a = p.current(motor, self.speed_rad_s, duty > 0.0);
     }
 }

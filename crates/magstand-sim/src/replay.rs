@@ -42,7 +42,16 @@ const MAX_SUBSTEPS_PER_STRETCH: f64 = 256.0;
 /// A 10-minute gap between two flights then costs hundreds of substeps, not 60 000, and no
 /// interval costs more than [`MAX_SUBSTEPS_PER_STRETCH`] per stretch (a non-finite length
 /// counts as one step).
+#[cfg(test)]
 fn substeps(dt: f64, switch_s: f64, settle_s: f64) -> Vec<(f64, f64, f64)> {
+    let mut out = Vec::new();
+    substeps_into(&mut out, dt, switch_s, settle_s);
+    out
+}
+
+/// [`substeps`] into a buffer the replay reuses for every row.
+fn substeps_into(out: &mut Vec<(f64, f64, f64)>, dt: f64, switch_s: f64, settle_s: f64) {
+    out.clear();
     let uniform = |a: f64, b: f64, longest: f64| {
         let n = ((b - a) / longest)
             .ceil()
@@ -51,9 +60,9 @@ fn substeps(dt: f64, switch_s: f64, settle_s: f64) -> Vec<(f64, f64, f64)> {
         (0..n).map(move |k| (a + k as f64 * h, a + (k + 1) as f64 * h, h))
     };
     if dt <= LONG_INTERVAL_S {
-        return uniform(0.0, dt, MAX_SUBSTEP_S).collect();
+        out.extend(uniform(0.0, dt, MAX_SUBSTEP_S));
+        return;
     }
-    let mut out = Vec::new();
     for (a, b) in [
         (0.0, switch_s.clamp(0.0, dt)),
         (switch_s.clamp(0.0, dt), dt),
@@ -67,7 +76,6 @@ fn substeps(dt: f64, switch_s: f64, settle_s: f64) -> Vec<(f64, f64, f64)> {
             out.extend(uniform(fine_end, b, SETTLED_SUBSTEP_S));
         }
     }
-    out
 }
 
 /// The electrical state at every row of a replayed recording.
@@ -148,12 +156,14 @@ pub fn replay(
     let mut total_a = avionics;
     // The command that acted last, per motor: it decides whether the ESC is driving.
     let mut acting: Vec<usize> = vec![0; n_motors];
+    let mut steps = Vec::new();
     for r in 0..rows {
         if r > 0 {
             let dt = t_s[r] - t_s[r - 1];
             let lead_from = dt * (1.0 - command_lead.clamp(0.0, 1.0));
             let settle_s = SETTLE_TIME_CONSTANTS * p.motors.spinup_tau_s;
-            for (a, b, h) in substeps(dt, lead_from, settle_s) {
+            substeps_into(&mut steps, dt, lead_from, settle_s);
+            for &(a, b, h) in &steps {
                 let voltage = match bat_v {
                     Some(v) => v[r - 1],
                     None => supply.voltage_v(&p.supply, total_a),
@@ -163,11 +173,13 @@ pub fn replay(
                     (r - 1, (lead_from.min(b) - a).max(0.0)),
                     (r, (b - lead_from.max(a)).max(0.0)),
                 ];
+                // Every motor steps by the same lengths: one lag factor each.
+                let alphas = parts.map(|(_, len)| p.motors.spinup_alpha(len));
                 total_a = avionics;
                 for (m, st) in motors.iter_mut().enumerate() {
-                    for &(row, len) in &parts {
+                    for (&(row, len), &alpha) in parts.iter().zip(&alphas) {
                         if len > 0.0 {
-                            st.step(&p.motors, m, command(m, row), voltage, len);
+                            st.step_electrical(&p.motors, m, command(m, row), voltage, alpha);
                             acting[m] = row;
                         }
                     }
