@@ -26,6 +26,7 @@
 #![warn(missing_docs)]
 
 pub mod atomic_file;
+pub mod bounded_search;
 mod error;
 mod fast_csv;
 #[cfg(any(test, feature = "file-fuzzing"))]

@@ -114,36 +114,20 @@ pub(crate) fn minimize(searches: &[Search], f: impl Fn(&[f64]) -> Option<f64>) -
     }
     // Golden-section refinement, coordinate by coordinate.
     let passes = if searches.len() > 1 { 2 } else { 1 };
-    let g = (5f64.sqrt() - 1.0) / 2.0;
     for _ in 0..passes {
         for k in 0..searches.len() {
             let (ulo, uhi) = searches[k].u_range();
             let h = searches[k].step();
-            let (mut a, mut b) = ((best_u[k] - h).max(ulo), (best_u[k] + h).min(uhi));
+            let (a, b) = ((best_u[k] - h).max(ulo), (best_u[k] + h).min(uhi));
             let at = |x: f64, base: &[f64]| {
                 let mut u = base.to_vec();
                 u[k] = x;
                 eval(&u)
             };
-            let mut c = b - g * (b - a);
-            let mut d = a + g * (b - a);
-            let (mut fc, mut fd) = (at(c, &best_u), at(d, &best_u));
-            for _ in 0..GOLDEN_ITERATIONS {
-                if fc < fd {
-                    b = d;
-                    d = c;
-                    fd = fc;
-                    c = b - g * (b - a);
-                    fc = at(c, &best_u);
-                } else {
-                    a = c;
-                    c = d;
-                    fc = fd;
-                    d = a + g * (b - a);
-                    fd = at(d, &best_u);
-                }
-            }
-            let (x, fx) = if fc < fd { (c, fc) } else { (d, fd) };
+            let (x, fx) =
+                magstand_core::bounded_search::golden_section(a, b, 0.0, GOLDEN_ITERATIONS, |x| {
+                    at(x, &best_u)
+                });
             if fx < best {
                 best = fx;
                 best_u[k] = x;

@@ -307,36 +307,23 @@ pub fn prepare_flight(
     let rss_at = |d: f64| -> Result<Stacked, IdentError> {
         stacked(rec, &to_body, &delayed(&rec.t_s, &u, d), cfg.earth, origin)
     };
-    // Grid over the delay, then golden section around the best grid point.
+    // Grid over the delay, then golden section around the best grid point. The fit at no
+    // delay comes first so that an error in the data is reported as such.
+    rss_at(0.0)?;
     let dt = rec.typical_interval_s().max(1e-6);
     let steps = ((cfg.max_delay_s / (dt / 2.0)).ceil() as usize).clamp(1, 60);
-    let mut best = (0.0, rss_at(0.0)?);
-    for k in 1..=steps {
-        let d = cfg.max_delay_s * k as f64 / steps as f64;
-        let r = rss_at(d)?;
-        if r.rms_ut < best.1.rms_ut {
-            best = (d, r);
-        }
-    }
+    let (delay, _) = magstand_core::bounded_search::minimize(
+        magstand_core::bounded_search::Grid {
+            lo: 0.0,
+            hi: cfg.max_delay_s,
+            points: steps + 1,
+        },
+        1e-4,
+        20,
+        |d| rss_at(d).map_or(f64::INFINITY, |r| r.rms_ut),
+    );
+    let best = (delay, rss_at(delay)?);
     let h = cfg.max_delay_s / steps as f64;
-    let (mut lo, mut hi) = ((best.0 - h).max(0.0), (best.0 + h).min(cfg.max_delay_s));
-    let g = 0.5 * (5f64.sqrt() - 1.0);
-    for _ in 0..20 {
-        if hi - lo < 1e-4 {
-            break;
-        }
-        let (a, b) = (hi - g * (hi - lo), lo + g * (hi - lo));
-        if rss_at(a)?.rms_ut < rss_at(b)?.rms_ut {
-            hi = b;
-        } else {
-            lo = a;
-        }
-    }
-    let mid = 0.5 * (lo + hi);
-    let r = rss_at(mid)?;
-    if r.rms_ut < best.1.rms_ut {
-        best = (mid, r);
-    }
     let (
         delay_s,
         Stacked {

@@ -128,30 +128,16 @@ pub fn per_motor_fit(
             .unwrap_or(f64::INFINITY)
     };
     // A coarse grid brackets the best exponent, golden section refines it.
-    const GRID: usize = 40;
-    let grid: Vec<f64> = (0..=GRID)
-        .map(|i| EXPO_RANGE.0 + (EXPO_RANGE.1 - EXPO_RANGE.0) * i as f64 / GRID as f64)
-        .collect();
-    let costs: Vec<f64> = grid.iter().map(|&e| ssr(e)).collect();
-    let best = (0..=GRID)
-        .min_by(|&i, &j| costs[i].total_cmp(&costs[j]))
-        .unwrap_or(GRID / 2);
-    let (mut a, mut b) = (grid[best.saturating_sub(1)], grid[(best + 1).min(GRID)]);
-    let g = (5f64.sqrt() - 1.0) / 2.0;
-    let (mut c, mut d) = (b - g * (b - a), a + g * (b - a));
-    let (mut fc, mut fd) = (ssr(c), ssr(d));
-    while b - a > 1e-6 {
-        if fc < fd {
-            (b, d, fd) = (d, c, fc);
-            c = b - g * (b - a);
-            fc = ssr(c);
-        } else {
-            (a, c, fc) = (c, d, fd);
-            d = a + g * (b - a);
-            fd = ssr(d);
-        }
-    }
-    let expo = 0.5 * (a + b);
+    let (expo, _) = magstand_core::bounded_search::minimize(
+        magstand_core::bounded_search::Grid {
+            lo: EXPO_RANGE.0,
+            hi: EXPO_RANGE.1,
+            points: 41,
+        },
+        1e-6,
+        100,
+        ssr,
+    );
     let AtExponent { theta, left } = solve_at(thr, volts, &dist, expo).map_err(refuse)?;
     let n = rec.len().max(1) as f64;
     Ok(PerMotorFit {
