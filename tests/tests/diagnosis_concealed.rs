@@ -56,3 +56,13 @@ fn a_field_outside_the_catalog_is_called_unexplained_not_forced_onto_a_name() {
         15,
     ));
 }
+
+/// Regression: with the replication rule's third condition read as "the held-out error drops
+/// on every axis the term changes", the dead zone of this recording (0.45 against the stated
+/// 0.37, p = 4e-24 over all axes) was refused because its y axis went from 0.5112 to
+/// 0.5128 µT, a rise well within the held-out error's own noise, and the verdict was
+/// `unexplained`. A claimed axis now refuses a term only where it gets significantly worse.
+#[test]
+fn a_rejected_stated_dead_zone_is_named_though_one_axis_barely_moves() {
+    assert_found(&case("dead_zone", 3));
+}

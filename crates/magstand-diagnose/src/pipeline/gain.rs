@@ -30,10 +30,22 @@ pub(crate) fn block_improvements(
     w: &Weights,
     split: &Split,
 ) -> Vec<f64> {
+    block_improvements_on(before, after, w, split, &[0, 1, 2])
+}
+
+/// [`block_improvements`] over the axes `axes` only.
+pub(crate) fn block_improvements_on(
+    before: &[Vec3],
+    after: &[Vec3],
+    w: &Weights,
+    split: &Split,
+    axes: &[usize],
+) -> Vec<f64> {
     let mut out: Vec<(usize, f64, f64)> = Vec::new();
     for r in (0..before.len()).filter(|&r| split.holdout[r]) {
-        let d: f64 = (0..3)
-            .map(|a| w.0[r][a] * (before[r][a].powi(2) - after[r][a].powi(2)))
+        let d: f64 = axes
+            .iter()
+            .map(|&a| w.0[r][a] * (before[r][a].powi(2) - after[r][a].powi(2)))
             .sum();
         match out.last_mut() {
             Some((b, s, n)) if *b == split.block[r] => {
