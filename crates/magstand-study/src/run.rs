@@ -105,20 +105,20 @@ pub fn run_one(study: &ValidStudy, run: usize) -> Result<Vec<MethodOutcome>, Stu
                 .clone()
                 .check()
                 .and_then(|c| c.fit_recording(&ident, &origin));
-            let (error, figures) = match fitted {
-                Ok(model) => (
-                    None,
-                    Some(figures(
-                        &model,
-                        &valid,
-                        if m.fixed_structure {
-                            bound.as_ref()
-                        } else {
-                            None
-                        },
-                    )),
-                ),
-                Err(e) => (Some(e.to_string()), None),
+            let judged = fitted.map_err(|e| e.to_string()).and_then(|model| {
+                within_range(figures(
+                    &model,
+                    &valid,
+                    if m.fixed_structure {
+                        bound.as_ref()
+                    } else {
+                        None
+                    },
+                ))
+            });
+            let (error, figures) = match judged {
+                Ok(f) => (None, Some(f)),
+                Err(e) => (Some(e), None),
             };
             MethodOutcome {
                 run,
@@ -129,6 +129,41 @@ pub fn run_one(study: &ValidStudy, run: usize) -> Result<Vec<MethodOutcome>, Stu
             }
         })
         .collect())
+}
+
+/// The figures, or why the run counts as failed: a figure beyond
+/// [`crate::runs_csv::MAX_FIGURE`] is a diverged fit, which runs.csv could not hold and the
+/// summary's sums would not survive.
+fn within_range(f: Figures) -> Result<Figures, String> {
+    let params = |v: &Option<[Vec<f64>; 3]>| -> Vec<f64> {
+        v.iter()
+            .flat_map(|axes| axes.iter().flatten().copied())
+            .collect()
+    };
+    let all = f
+        .rmse_axis_ut
+        .iter()
+        .chain(&[
+            f.rmse_ut,
+            f.e20_rms_pct,
+            f.heading_before_deg,
+            f.heading_after_deg,
+        ])
+        .chain(&f.bin_rmse_ut)
+        .copied()
+        .chain(params(&f.param_error))
+        .chain(params(&f.crlb_diag))
+        .collect::<Vec<f64>>();
+    match all
+        .iter()
+        .find(|v| v.is_finite() && v.abs() > crate::runs_csv::MAX_FIGURE)
+    {
+        Some(v) => Err(format!(
+            "the fit diverged: a figure of {v:e} is beyond {:e}",
+            crate::runs_csv::MAX_FIGURE
+        )),
+        None => Ok(f),
+    }
 }
 
 fn figures(model: &magstand_ident::Model, valid: &Recording, bound: Option<&Bound>) -> Figures {
@@ -171,5 +206,48 @@ fn figures(model: &magstand_ident::Model, valid: &Recording, bound: Option<&Boun
         bin_rmse_ut,
         crlb_diag: param_error.as_ref().and(bound.map(|b| b.crlb_diag.clone())),
         param_error,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn fine() -> Figures {
+        Figures {
+            rmse_axis_ut: [0.1, 0.2, 0.3],
+            rmse_ut: 0.4,
+            e20_rms_pct: 1.0,
+            heading_before_deg: 5.0,
+            heading_after_deg: 0.5,
+            bin_rmse_ut: [f64::NAN; BINS],
+            param_error: None,
+            crlb_diag: None,
+        }
+    }
+
+    /// Regression: a diverged fit's figure of 1.8e308 was written to runs.csv, which merge
+    /// then refused to read (figures are bounded by MAX_FIGURE there). The run now counts as
+    /// failed, with why, and what is written can be read back.
+    #[test]
+    fn a_diverged_fit_is_a_failed_run_that_runs_csv_can_hold() {
+        assert!(within_range(fine()).is_ok());
+        let mut huge = fine();
+        huge.param_error = Some([vec![1.7e308], vec![0.0], vec![0.0]]);
+        let why = within_range(huge).unwrap_err();
+        assert!(why.contains("diverged") && why.contains("1.7e308"), "{why}");
+        let outcome = MethodOutcome {
+            run: 0,
+            seed: 1,
+            method: "px4".into(),
+            error: Some(why),
+            figures: None,
+        };
+        let bytes = crate::runs_csv::to_bytes(&[outcome]).unwrap();
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("runs.csv");
+        std::fs::write(&path, bytes).unwrap();
+        let back = crate::runs_csv::read(&path).unwrap();
+        assert!(back[0].error.as_deref().unwrap().contains("diverged"));
     }
 }
