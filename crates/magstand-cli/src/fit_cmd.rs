@@ -7,7 +7,7 @@ use clap::{Args, ValueEnum};
 use crate::files;
 use magstand_core::{AXES, recording_csv};
 use magstand_ident::{
-    Estimation, Family, FitConfig, InputKind, Model, Structure, evenly_spaced_centers,
+    Estimation, Family, FitConfig, FitSetting, InputKind, Model, Structure, evenly_spaced_centers,
     paper_ratio_width,
 };
 
@@ -182,9 +182,37 @@ fn take_out_earth_field(
         p.attitude_span_deg.1
     );
     for w in &p.warnings {
-        eprintln!("warning: {w}");
+        eprintln!("warning: {}", in_flag_terms(w));
     }
     Ok((p.recording, summary, p.reference_ut))
+}
+
+/// The flag of each identification setting: the library names settings by its configuration
+/// (`max_delay_s`), the command line by its flags.
+fn flag(setting: FitSetting) -> Option<&'static str> {
+    Some(match setting {
+        FitSetting::LocalModels => "--rbf",
+        FitSetting::Centers => "--centers",
+        FitSetting::Widths => "--width",
+        FitSetting::MaxModels => "--max-models",
+        FitSetting::Input => "--inputs",
+        FitSetting::Earth => "--earth",
+        FitSetting::MaxDelayS => "--max-delay-s",
+        FitSetting::MaxTiltDeg => "--max-tilt-deg",
+        _ => return None,
+    })
+}
+
+/// An identification message in the command line's terms: each setting it names between
+/// backticks becomes its flag.
+pub fn in_flag_terms(text: &str) -> String {
+    let mut out = text.to_string();
+    for s in FitSetting::ALL {
+        if let Some(f) = flag(s) {
+            out = out.replace(&format!("`{}`", s.name()), &format!("`{f}`"));
+        }
+    }
+    out
 }
 
 /// The fit settings the arguments describe.
@@ -370,6 +398,21 @@ mod tests {
 
     /// `magstand check`'s `method = "default"` and the studies' `automatic` stand for what
     /// `fit` does with no options: the two must not drift apart.
+    #[test]
+    fn library_setting_names_become_flags() {
+        assert_eq!(
+            in_flag_terms(
+                "invalid setting `max_delay_s` = 12: raise `max_delay_s`, or give `earth`"
+            ),
+            "invalid setting `--max-delay-s` = 12: raise `--max-delay-s`, or give `--earth`"
+        );
+        // Every setting the command line has a flag for is translated.
+        for s in FitSetting::ALL {
+            let text = in_flag_terms(&format!("`{}`", s.name()));
+            assert!(flag(s).is_none() || text.contains("--"), "{s}: {text}");
+        }
+    }
+
     #[test]
     fn the_default_fit_is_the_methods_default_id() {
         let a = Wrapper::try_parse_from(["fit", "--recording", "r.csv", "--model-out", "m.json"])

@@ -80,7 +80,9 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Simulate(a) => simulate_cmd::run(a),
-        Command::Fit(a) => fit_cmd::run(a),
+        Command::Fit(a) => {
+            fit_cmd::run(a).map_err(|e| anyhow::anyhow!(fit_cmd::in_flag_terms(&error_text(&e))))
+        }
         Command::Compensate(a) => compensate_cmd::run(a),
         Command::Diagnose(a) => diagnose_cmd::run(a),
         Command::Export(a) => export_cmd::run(a),

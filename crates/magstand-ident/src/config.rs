@@ -3,13 +3,13 @@
 use magstand_core::rbf::RbfPartition;
 use magstand_core::{Recording, Vec3};
 
-use crate::IdentError;
 use crate::baseline;
 use crate::dataset::{Dataset, InputKind};
 use crate::local_linear::{self, Estimation};
 use crate::model::{FitSummary, IdentifiedRange, Model, Structure};
 use crate::noise_model::SdModel;
 use crate::structure;
+use crate::{FitSetting, IdentError};
 
 /// Which model family to fit.
 #[derive(Debug, Clone, PartialEq)]
@@ -114,9 +114,9 @@ impl FitConfig {
 
     /// Checks every setting.
     pub fn check(self) -> Result<ValidFitConfig, IdentError> {
-        let bad = |key: &str, value: String, expected: &str| {
+        let bad = |setting: FitSetting, value: String, expected: &str| {
             Err(IdentError::InvalidSetting {
-                key: key.into(),
+                setting,
                 value,
                 expected: expected.into(),
             })
@@ -126,14 +126,18 @@ impl FitConfig {
                 centers, widths, ..
             } => {
                 if centers.is_empty() || centers.len() > 50 {
-                    return bad("rbf", centers.len().to_string(), "1..=50 local models");
+                    return bad(
+                        FitSetting::LocalModels,
+                        centers.len().to_string(),
+                        "1..=50 local models",
+                    );
                 }
                 if let Some(c) = centers
                     .iter()
                     .find(|c| !(c.is_finite() && (-1.0..=2.0).contains(*c)))
                 {
                     return bad(
-                        "centers",
+                        FitSetting::Centers,
                         c.to_string(),
                         "finite centres in -1..=2 (the input is normalized to 0..1)",
                     );
@@ -142,21 +146,29 @@ impl FitConfig {
                     .iter()
                     .find(|w| !(w.is_finite() && **w > 0.0 && **w <= 1e4))
                 {
-                    return bad("width", w.to_string(), "a width parameter in (0, 10000]");
+                    return bad(
+                        FitSetting::Widths,
+                        w.to_string(),
+                        "a width parameter in (0, 10000]",
+                    );
                 }
                 if widths.len() != centers.len() {
-                    return bad("width", widths.len().to_string(), "one width per centre");
+                    return bad(
+                        FitSetting::Widths,
+                        widths.len().to_string(),
+                        "one width per centre",
+                    );
                 }
             }
             Family::Automatic { max_models, .. } => {
                 if !(1..=30).contains(max_models) {
-                    return bad("max-models", max_models.to_string(), "1..=30");
+                    return bad(FitSetting::MaxModels, max_models.to_string(), "1..=30");
                 }
             }
             Family::ArduPilot | Family::Px4 | Family::Cubic => {
                 if self.input == InputKind::Motors {
                     return bad(
-                        "inputs",
+                        FitSetting::Input,
                         "motors".into(),
                         "throttle or current for the straight-line and cubic baselines",
                     );
@@ -164,7 +176,7 @@ impl FitConfig {
             }
         }
         if !(2..=101).contains(&self.sd_knots) {
-            return bad("sd-knots", self.sd_knots.to_string(), "2..=101");
+            return bad(FitSetting::SdKnots, self.sd_knots.to_string(), "2..=101");
         }
         Ok(ValidFitConfig(self))
     }

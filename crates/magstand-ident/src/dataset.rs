@@ -25,7 +25,7 @@ impl std::str::FromStr for InputKind {
             "motors" => Ok(InputKind::Motors),
             "current" => Ok(InputKind::Current),
             _ => Err(IdentError::InvalidSetting {
-                key: "inputs".into(),
+                setting: crate::FitSetting::Input,
                 value: s.into(),
                 expected: "throttle, motors or current".into(),
             }),
@@ -197,18 +197,18 @@ impl Dataset {
         // The missing column first: it is the user's choice of input that cannot work.
         if kind == InputKind::Current && rec.bat_a.is_none() {
             return Err(data_err(
-                "`--inputs current` needs a `bat_a` column; the recording has none (use --inputs throttle)".into(),
+                "the current `input` needs a `bat_a` column; the recording has none (use the throttle)".into(),
             ));
         }
         let off = motors_off_rows(rec);
-        let reference_ut = motors_off_reference(rec, &off).or(fallback_reference_ut).ok_or_else(|| data_err("no motors-off rows (every thr = 0) to take the eq. 9 reference from; record a few seconds with the motors off (with --earth, a flight whose input comes down near zero will do)".into()))?;
+        let reference_ut = motors_off_reference(rec, &off).or(fallback_reference_ut).ok_or_else(|| data_err("no motors-off rows (every thr = 0) to take the eq. 9 reference from; record a few seconds with the motors off (for a flight with its Earth field taken out, one whose input comes down near zero will do)".into()))?;
         let (lo, hi, off_raw) = match kind {
             InputKind::Throttle | InputKind::Motors => (0.0, 1.0, 0.0),
             InputKind::Current => {
                 let a = rec
                     .bat_a
                     .as_ref()
-                    .ok_or_else(|| data_err("`--inputs current` needs a `bat_a` column".into()))?;
+                    .ok_or_else(|| data_err("the current `input` needs a `bat_a` column".into()))?;
                 let off_a = if off.is_empty() {
                     0.0
                 } else {

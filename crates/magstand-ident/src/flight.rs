@@ -153,7 +153,7 @@ fn stacked(
         why: match e {
             SolveError::NoData => "no rows".into(),
             SolveError::Singular { column, .. } if column >= 3 * PER_AXIS => {
-                "the attitude does not vary enough to tell the Earth field from the sensor offset (fly turns, or give the Earth field with --earth wmm)".into()
+                "the attitude does not vary enough to tell the Earth field from the sensor offset (fly turns, or give the Earth field: `earth`, a reference model such as the World Magnetic Model)".into()
             }
             SolveError::Singular { .. } => {
                 "the input does not vary enough (fewer than four distinct levels)".into()
@@ -235,7 +235,7 @@ pub fn prepare_flight(
     };
     if !(cfg.max_delay_s.is_finite() && (0.0..=10.0).contains(&cfg.max_delay_s)) {
         return Err(IdentError::InvalidSetting {
-            key: "max-delay-s".into(),
+            setting: crate::FitSetting::MaxDelayS,
             value: cfg.max_delay_s.to_string(),
             expected: "0..10 s".into(),
         });
@@ -244,7 +244,7 @@ pub fn prepare_flight(
         && !(e.iter().all(|v| v.is_finite()) && e.norm() > 1.0)
     {
         return Err(IdentError::InvalidSetting {
-            key: "earth".into(),
+            setting: crate::FitSetting::Earth,
             value: format!("{e:?}"),
             expected: "a finite Earth field of more than 1 µT".into(),
         });
@@ -260,7 +260,7 @@ pub fn prepare_flight(
     }
     if !(cfg.max_tilt_deg.is_finite() && (0.0..=180.0).contains(&cfg.max_tilt_deg)) {
         return Err(IdentError::InvalidSetting {
-            key: "max-tilt-deg".into(),
+            setting: crate::FitSetting::MaxTiltDeg,
             value: cfg.max_tilt_deg.to_string(),
             expected: "0..180 degrees".into(),
         });
@@ -273,7 +273,7 @@ pub fn prepare_flight(
         let level = rec.select_rows(|r| tilts[r] <= cfg.max_tilt_deg);
         let worst = steep.iter().map(|&r| tilts[r]).fold(0.0, f64::max);
         let note = format!(
-            "{origin}: {} rows between {:.1} and {:.1} s are tilted beyond {:.0} deg (up to {worst:.0} deg: a flip or a crash) and are left out; --max-tilt-deg 180 keeps them",
+            "{origin}: {} rows between {:.1} and {:.1} s are tilted beyond {:.0} deg (up to {worst:.0} deg: a flip or a crash) and are left out; a `max_tilt_deg` of 180 keeps them",
             steep.len(),
             rec.t_s[first],
             rec.t_s[last],
@@ -298,7 +298,7 @@ pub fn prepare_flight(
         FlightInput::Current => rec
             .bat_a
             .clone()
-            .ok_or_else(|| data("--inputs current needs the bat_a column".into()))?,
+            .ok_or_else(|| data("the current `input` needs the bat_a column".into()))?,
     };
     let to_body: Vec<Matrix3<f64>> = att
         .iter()
@@ -371,7 +371,7 @@ pub fn prepare_flight(
         // separate the Earth field from the offsets well enough to trust it.
         if !(2.0 * sd <= 2.0) {
             warnings.push(format!(
-                "{origin}: the flight covers {yaw_span:.0} deg of heading (tilt up to {tilt:.0} deg), too little to tell the Earth field from the sensor offset: the fitted inclination {:.1} deg is uncertain by about {:.1} deg (2 standard errors); give the reference field with --earth wmm --lat --lon --year",
+                "{origin}: the flight covers {yaw_span:.0} deg of heading (tilt up to {tilt:.0} deg), too little to tell the Earth field from the sensor offset: the fitted inclination {:.1} deg is uncertain by about {:.1} deg (2 standard errors); give the reference field as `earth` (the World Magnetic Model at the log's place and date)",
                 earth.z.atan2(earth.xy().norm()).to_degrees(),
                 2.0 * sd
             ));
@@ -379,7 +379,7 @@ pub fn prepare_flight(
     }
     if delay_s >= cfg.max_delay_s - 0.5 * h {
         warnings.push(format!(
-            "{origin}: the best delay is at the end of the search ({:.3} s): the magnetometer lags more (raise --max-delay-s), or the delay is not identifiable from this log",
+            "{origin}: the best delay is at the end of the search ({:.3} s): the magnetometer lags more (raise `max_delay_s`), or the delay is not identifiable from this log",
             cfg.max_delay_s
         ));
     }
@@ -688,8 +688,7 @@ mod tests {
             narrow
                 .warnings
                 .iter()
-                .any(|w| w.contains("too little to tell the Earth field")
-                    && w.contains("--earth wmm")),
+                .any(|w| w.contains("too little to tell the Earth field") && w.contains("`earth`")),
             "{:?}",
             narrow.warnings
         );

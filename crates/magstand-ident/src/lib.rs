@@ -62,6 +62,6 @@ pub use dataset::{
     Dataset, InputKind, InputSpec, MIN_ROWS, OFF_COMMAND, motors_off, motors_off_reference,
     motors_off_rows,
 };
-pub use error::IdentError;
+pub use error::{FitSetting, IdentError};
 pub use local_linear::{Estimation, LocalLinearNet};
 pub use model::{FORMAT, FitSummary, IdentifiedRange, Model, Scratch, Structure, VERSION};
