@@ -139,7 +139,7 @@ What the tables say:
   extrapolation, and the fit refuses. On those three flights magstand's model is better than
   PX4's line on held-out blocks on x (5.55 against 6.01, 5.95 against 6.42, 0.89 against 0.98
   uT) and within the noise on y and z; with 1 Hz rows and 90 degrees of heading or less the
-  fitted Earth fields are uncertain, and `magstand fit` says so and suggests --earth wmm.
+  fitted Earth fields are uncertain, and `magstand fit` says so and suggests `--earth` with the World Magnetic Model.
 - compassmot's figures are withheld on every PX4 log and on the ArduPilot current fits:
   ArduPilot's running average needs about 300 updates to forget its start, and these logs give
   it 52 to 116 (the 10 Hz ArduPilot log with the throttle as input is the exception).

@@ -206,13 +206,11 @@ fn flag(setting: FitSetting) -> Option<&'static str> {
 /// An identification message in the command line's terms: each setting it names between
 /// backticks becomes its flag.
 pub fn in_flag_terms(text: &str) -> String {
-    let mut out = text.to_string();
-    for s in FitSetting::ALL {
-        if let Some(f) = flag(s) {
-            out = out.replace(&format!("`{}`", s.name()), &format!("`{f}`"));
-        }
-    }
-    out
+    let flags: Vec<(&str, &str)> = FitSetting::ALL
+        .iter()
+        .filter_map(|&s| Some((s.name(), flag(s)?)))
+        .collect();
+    crate::flag_terms::in_flag_terms(text, &flags)
 }
 
 /// The fit settings the arguments describe.

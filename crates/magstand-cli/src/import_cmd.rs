@@ -104,7 +104,10 @@ pub fn run(a: ImportArgs) -> Result<()> {
     drop(bytes);
     files::ensure_parent(&a.out)?;
     magstand_core::recording_csv::write(&rec, &a.out)?;
-    eprint!("{}", report.summary(&rec));
+    eprint!(
+        "{}",
+        crate::flag_terms::in_flag_terms(&report.summary(&rec), &crate::flag_terms::IMPORT_FLAGS)
+    );
     eprintln!("wrote {}", a.out.display());
     Ok(())
 }

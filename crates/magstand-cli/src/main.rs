@@ -14,6 +14,7 @@ mod diagnose_cmd;
 mod export_cmd;
 mod files;
 mod fit_cmd;
+mod flag_terms;
 mod import_cmd;
 mod montecarlo_cmd;
 mod progress;
@@ -85,8 +86,18 @@ fn main() -> ExitCode {
         }
         Command::Compensate(a) => compensate_cmd::run(a),
         Command::Diagnose(a) => diagnose_cmd::run(a),
-        Command::Export(a) => export_cmd::run(a),
-        Command::Import(a) => import_cmd::run(a),
+        Command::Export(a) => export_cmd::run(a).map_err(|e| {
+            anyhow::anyhow!(flag_terms::in_flag_terms(
+                &error_text(&e),
+                &flag_terms::EXPORT_FLAGS
+            ))
+        }),
+        Command::Import(a) => import_cmd::run(a).map_err(|e| {
+            anyhow::anyhow!(flag_terms::in_flag_terms(
+                &error_text(&e),
+                &flag_terms::IMPORT_FLAGS
+            ))
+        }),
         Command::Montecarlo(a) => montecarlo_cmd::run(a),
         Command::Report(a) => report_cmd::run(a),
         Command::Demo(a) => demo::run(a),

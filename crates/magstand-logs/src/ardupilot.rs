@@ -131,7 +131,7 @@ fn magnetometer(
             return Err(LogsError::Unusable {
                 path: log.path.clone(),
                 what: format!(
-                    "--mag {m}: the log has no compass instance {m} (MAG instances {:?}, 0 = MAG, 1 = MAG2, ...)",
+                    "`mag` = {m}: the log has no compass instance {m} (MAG instances {:?}, 0 = MAG, 1 = MAG2, ...)",
                     instances
                 ),
             });
@@ -150,7 +150,7 @@ fn magnetometer(
             None => "internal or external not logged",
         },
         if opts.mag.is_none() {
-            format!("; --mag N picks another of {instances:?}")
+            format!("; `mag` picks another of {instances:?}")
         } else {
             String::new()
         }
@@ -205,7 +205,7 @@ fn motors(
         .collect();
     let positive = |n: &str| log.param(n).filter(|v| *v > 0.0);
     let (lo, hi, source) = match opts.pwm_range {
-        Some((lo, hi)) => (lo, hi, "--pwm-range"),
+        Some((lo, hi)) => (lo, hi, "`pwm_range`"),
         None => match (positive("MOT_PWM_MIN"), positive("MOT_PWM_MAX")) {
             (Some(lo), Some(hi)) => (lo, hi, "MOT_PWM_MIN/MAX"),
             _ => match (positive("RC3_MIN"), positive("RC3_MAX")) {
@@ -215,7 +215,7 @@ fn motors(
                         path: log.path.clone(),
                         what: "the motor PWM limits (MOT_PWM_MIN/MAX or RC3_MIN/MAX in PARM)"
                             .into(),
-                        hint: "give --pwm-range MIN:MAX".into(),
+                        hint: "give `pwm_range` (MIN:MAX)".into(),
                     });
                 }
             },
@@ -236,7 +236,7 @@ fn motors(
     };
     let frame_text = log.text_after("Frame: ");
     let (n, count_from) = if let Some(n) = opts.motors {
-        (n, "--motors".to_string())
+        (n, "`motors`".to_string())
     } else if !by_function.is_empty() {
         (by_function.len(), "SERVOn_FUNCTION".to_string())
     } else if let Some(n) = frame_class {
@@ -267,7 +267,7 @@ fn motors(
                     what: format!(
                         "the motor count (no SERVOn_FUNCTION = 33.., no FRAME_CLASS, no \"Frame:\" message, and the {logged} RCOU channels do not show which ones drive motors)"
                     ),
-                    hint: "give --motors N".into(),
+                    hint: "give `motors` (the motor count)".into(),
                 });
             }
         }
@@ -283,7 +283,7 @@ fn motors(
             channel(c).ok_or_else(|| LogsError::Missing {
                 path: log.path.clone(),
                 what: format!("RCOU channel {c}"),
-                hint: format!("the log has {logged} channels; check --motors"),
+                hint: format!("the log has {logged} channels; check `motors`"),
             })
         })
         .collect::<Result<_, _>>()?;

@@ -216,13 +216,13 @@ pub fn import(
     {
         return Err(LogsError::Unusable {
             path: log.path.clone(),
-            what: format!("--pwm-range {lo}:{hi}: the maximum must exceed the minimum"),
+            what: format!("`pwm_range` = {lo}:{hi}: the maximum must exceed the minimum"),
         });
     }
     if opts.motors == Some(0) {
         return Err(LogsError::Unusable {
             path: log.path.clone(),
-            what: "--motors 0: a multirotor has at least one motor".into(),
+            what: "`motors` = 0: a multirotor has at least one motor".into(),
         });
     }
     let streams = match log.format {
@@ -475,10 +475,7 @@ fn align(
             "no motor commands within a short interval around them".to_string(),
             no_motors,
         ),
-        (
-            "outside the --from-s/--to-s window".to_string(),
-            outside_window,
-        ),
+        ("outside the `window_s`".to_string(), outside_window),
         (
             "of another segment than the one asked for".to_string(),
             other_segment,

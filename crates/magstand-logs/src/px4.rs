@@ -125,19 +125,19 @@ fn magnetometer(
                 return Err(LogsError::Unusable {
                     path: log.path.clone(),
                     what: format!(
-                        "--mag {m}: sensor_mag has no instance {m}; the log has {}",
+                        "`mag` = {m}: sensor_mag has no instance {m}; the log has {}",
                         list(&instances)
                     ),
                 });
             }
             out.notes
-                .push(format!("magnetometer: sensor_mag[{m}] (--mag)"));
+                .push(format!("magnetometer: sensor_mag[{m}] (`mag`)"));
             m
         }
         None => match instances.iter().copied().find(|&i| internal(i)) {
             Some(i) => {
                 out.notes.push(format!(
-                    "magnetometer: sensor_mag[{i}], the first internal one (CAL_MAG{}_ROT = -1); --mag N picks another of {}",
+                    "magnetometer: sensor_mag[{i}], the first internal one (CAL_MAG{}_ROT = -1); `mag` picks another of {}",
                     slot(i).unwrap_or(0),
                     list(&instances)
                 ));
@@ -146,7 +146,7 @@ fn magnetometer(
             None => {
                 let i = instances[0];
                 out.notes.push(format!(
-                    "magnetometer: sensor_mag[{i}] (no instance is marked internal); --mag N picks another of {}",
+                    "magnetometer: sensor_mag[{i}] (no instance is marked internal); `mag` picks another of {}",
                     list(&instances)
                 ));
                 i
@@ -239,7 +239,7 @@ fn vehicle_magnetometer(
             LogsError::Unusable {
                 path: log.path.clone(),
                 what: format!(
-                    "--mag {inst}: vehicle_magnetometer has no instance {inst}; the log has {}",
+                    "`mag` = {inst}: vehicle_magnetometer has no instance {inst}; the log has {}",
                     list(&instances)
                 ),
             }
@@ -329,7 +329,7 @@ fn motors(
             return Err(LogsError::Unusable {
                 path: log.path.clone(),
                 what: format!(
-                    "--outputs {i}: actuator_outputs has no instance {i}; the log has {}",
+                    "`outputs` = {i}: actuator_outputs has no instance {i}; the log has {}",
                     list(&instances)
                 ),
             });
@@ -376,7 +376,7 @@ fn motors(
             return Err(missing(
                 log,
                 "the motor count (no PWM_MAIN_FUNCn = 101.. and no multirotor MAV_TYPE)",
-                "give --motors N",
+                "give `motors` (the motor count)",
             ));
         }
     };
@@ -392,7 +392,7 @@ fn motors(
                 missing(
                     log,
                     &format!("actuator_outputs[{inst}].output[{c}]"),
-                    "fewer outputs than motors; check --motors",
+                    "fewer outputs than motors; check `motors`",
                 )
             })
         })
@@ -416,7 +416,7 @@ fn motors(
                     missing(
                         log,
                         &format!("the PWM limits of output {ch} (PWM_MAIN_MIN{ch}/PWM_MAIN_MAX{ch} or PWM_MIN/PWM_MAX)"),
-                        "give --pwm-range MIN:MAX",
+                        "give `pwm_range` (MIN:MAX)",
                     )
                 })
         })
@@ -425,7 +425,7 @@ fn motors(
         "motors: actuator_outputs[{inst}] channels {:?}, range {}",
         channels.iter().map(|c| c + 1).collect::<Vec<_>>(),
         if opts.pwm_range.is_some() {
-            "from --pwm-range".to_string()
+            "from `pwm_range`".to_string()
         } else if uavcan {
             "UAVCAN raw 0..8191".to_string()
         } else {

@@ -56,7 +56,7 @@ fn a_log_without_magnetometer_or_pwm_limits_says_so() {
         .unwrap_err()
         .to_string();
     assert!(
-        e.contains("nopwm.bin") && e.contains("PWM limits") && e.contains("--pwm-range"),
+        e.contains("nopwm.bin") && e.contains("PWM limits") && e.contains("`pwm_range`"),
         "{e}"
     );
     let ulog = replace(

@@ -369,7 +369,7 @@ fn the_per_motor_set_is_refused_when_it_cannot_be_identified() {
     )
     .unwrap_err()
     .to_string();
-    assert!(err.contains("--inputs motors"), "{err}");
+    assert!(err.contains("per-motor model"), "{err}");
 }
 
 #[test]
@@ -391,7 +391,7 @@ fn a_throttle_model_exports_a_line_per_ampere_over_a_recordings_rows() {
     let err = linear_approximation(&model, LineInput::Current, Span::ModelRange)
         .unwrap_err()
         .to_string();
-    assert!(err.contains("--recording"), "{err}");
+    assert!(err.contains("`recording`"), "{err}");
     // ArduPilot's interference: |slope| x top of range over 530 mG.
     let expected = Vec3::from(k).norm() / 50.0 * line.range_max / 53.0 * 100.0;
     assert!((line.ardupilot_interference_pct() - expected).abs() < 1e-9);

@@ -159,7 +159,7 @@ fn bad_requests_and_the_corrupt_log_are_clear_errors() {
     let e = import_file(&log("px4-fmuv6c-quad-local.ulg"), &opts)
         .unwrap_err()
         .to_string();
-    assert!(e.contains("--mag 5") && e.contains("0, 1"), "{e}");
+    assert!(e.contains("`mag` = 5") && e.contains("0, 1"), "{e}");
     let opts = ImportOptions {
         pwm_range: Some((2000.0, 1000.0)),
         ..ImportOptions::default()
@@ -167,7 +167,7 @@ fn bad_requests_and_the_corrupt_log_are_clear_errors() {
     let e = import_file(&log("ardupilot-log171-quad.bin"), &opts)
         .unwrap_err()
         .to_string();
-    assert!(e.contains("pwm-range"), "{e}");
+    assert!(e.contains("`pwm_range`"), "{e}");
     let e = import_file(&log("README.md"), &ImportOptions::default())
         .unwrap_err()
         .to_string();

@@ -91,7 +91,7 @@ fn outputs_that_never_spin_are_an_error_asking_for_the_count() {
     .unwrap_err()
     .to_string();
     assert!(
-        e.contains("disarmed.bin") && e.contains("motor count") && e.contains("--motors"),
+        e.contains("disarmed.bin") && e.contains("motor count") && e.contains("`motors`"),
         "{e}"
     );
 }

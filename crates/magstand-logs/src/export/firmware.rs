@@ -29,12 +29,12 @@ impl Parts {
     fn of(model: &Model) -> Result<Self, LogsError> {
         if model.input.kind == InputKind::Motors {
             return Err(LogsError::Export(
-                "a per-motor model takes every motor's command; the firmware export takes one input (fit with --inputs throttle or current)".into(),
+                "a per-motor model takes every motor's command; the firmware export takes one input (fit it on the throttle or the current)".into(),
             ));
         }
         let Structure::LocalLinear(net) = &model.structure else {
             return Err(LogsError::Export(format!(
-                "the firmware export writes local linear models; `{}` is a polynomial (export it with --to px4 or ardupilot)",
+                "the firmware export writes local linear models; `{}` is a polynomial (export it as PX4 or ArduPilot parameters)",
                 model.method
             )));
         };

@@ -154,7 +154,7 @@ fn samples(model: &Model, input: LineInput, span: Span) -> Result<Samples, LogsE
         Span::ModelRange => {
             if input != LineInput::of(model) {
                 return Err(LogsError::Export(format!(
-                    "the model's input is {:?}; a line per {} needs the recording it applies to (--recording R.csv{})",
+                    "the model's input is {:?}; a line per {} needs the recording it applies to (a `recording`{})",
                     model.input.kind,
                     match input {
                         LineInput::Current => "ampere",

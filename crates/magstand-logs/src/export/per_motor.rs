@@ -92,7 +92,7 @@ pub fn per_motor_fit(
 ) -> Result<PerMotorFit, LogsError> {
     if model.input.kind != InputKind::Motors {
         return Err(LogsError::Export(format!(
-            "per-motor parameters need a per-motor model (magstand fit --inputs motors); this one's input is {:?}",
+            "per-motor parameters need a per-motor model (one fitted on the motor commands); this one's input is {:?}",
             model.input.kind
         )));
     }
