@@ -208,32 +208,13 @@ const EXACT_POWERS_OF_TEN: [f64; 23] = [
 /// A cell as `cell.trim().parse::<f64>()` reads it, bit for bit. The plain decimal form
 /// (`-12.345`) with at most 2^53 as its digits and at most 22 decimals is one exact integer
 /// divided by one exact power of ten, which IEEE division rounds correctly, as the standard
-/// parser does (Clinger's fast path); any other form goes to the standard parser.
+/// parser does (Clinger's fast path, [`plain_number`]); any other form goes to the standard parser.
 fn parse_number(cell: &[u8]) -> Option<f64> {
     let s = cell.trim_ascii();
-    let (negative, digits) = match s.split_first() {
-        Some((b'-', rest)) => (true, rest),
-        Some((b'+', rest)) => (false, rest),
-        _ => (false, s),
-    };
-    let mut mantissa: u64 = 0;
-    let (mut count, mut decimals, mut dot) = (0usize, 0usize, false);
-    for &b in digits {
-        match b {
-            b'0'..=b'9' if count < 19 => {
-                mantissa = mantissa * 10 + u64::from(b - b'0');
-                count += 1;
-                decimals += usize::from(dot);
-            }
-            b'.' if !dot => dot = true,
-            _ => return standard(s),
-        }
+    match plain_number(s, 0) {
+        Some((v, end)) if end == s.len() => Some(v),
+        _ => standard(s),
     }
-    if count == 0 || mantissa > 1 << 53 || decimals >= EXACT_POWERS_OF_TEN.len() {
-        return standard(s);
-    }
-    let v = mantissa as f64 / EXACT_POWERS_OF_TEN[decimals];
-    Some(if negative { -v } else { v })
 }
 
 /// The standard parser, for every form the fast path leaves.
