@@ -7,21 +7,8 @@
 //! ArduPilot log, `time_offset` and `thermal_drift` among them).
 use magstand_core::{Quat, Recording, Vec3};
 use magstand_diagnose::{DiagnoseConfig, diagnose, unstated_nominal};
-
-/// Standard normal draws from a fixed xorshift stream (Box-Muller): the test owns its noise.
-struct Normal(u64);
-impl Normal {
-    fn uniform(&mut self) -> f64 {
-        self.0 ^= self.0 << 13;
-        self.0 ^= self.0 >> 7;
-        self.0 ^= self.0 << 17;
-        ((self.0 >> 11) as f64 + 0.5) / (1u64 << 53) as f64
-    }
-    fn draw(&mut self) -> f64 {
-        let (u, v) = (self.uniform(), self.uniform());
-        (-2.0 * u.ln()).sqrt() * (std::f64::consts::TAU * v).cos()
-    }
-}
+mod common;
+use common::Normal;
 
 const HZ: f64 = 50.0;
 const DELAY_S: f64 = 0.12;

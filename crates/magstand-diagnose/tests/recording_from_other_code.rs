@@ -9,24 +9,9 @@
 //! time_offset test itself gave p = 2e-33.
 use magstand_core::{Recording, Vec3};
 mod common;
-use common::diagnose_default;
+use common::{Normal, diagnose_default};
 use magstand_diagnose::DEFAULT_NOMINAL;
 use magstand_sim::Scenario;
-
-/// Standard normal draws from a fixed xorshift stream (Box-Muller): the test owns its noise.
-struct Normal(u64);
-impl Normal {
-    fn uniform(&mut self) -> f64 {
-        self.0 ^= self.0 << 13;
-        self.0 ^= self.0 >> 7;
-        self.0 ^= self.0 << 17;
-        ((self.0 >> 11) as f64 + 0.5) / (1u64 << 53) as f64
-    }
-    fn draw(&mut self) -> f64 {
-        let (u, v) = (self.uniform(), self.uniform());
-        (-2.0 * u.ln()).sqrt() * (std::f64::consts::TAU * v).cos()
-    }
-}
 
 const HZ: f64 = 25.0;
 const DELAY_S: f64 = 0.2;

@@ -34,3 +34,22 @@ pub fn diagnose_default(rec: &Recording, origin: &str, nominal: &ValidScenario) 
     )
     .unwrap()
 }
+
+/// Standard normal draws from a fixed xorshift stream (Box-Muller): a test that writes its
+/// own recording owns its noise too.
+pub struct Normal(pub u64);
+
+impl Normal {
+    fn uniform(&mut self) -> f64 {
+        self.0 ^= self.0 << 13;
+        self.0 ^= self.0 >> 7;
+        self.0 ^= self.0 << 17;
+        ((self.0 >> 11) as f64 + 0.5) / (1u64 << 53) as f64
+    }
+
+    /// The next draw.
+    pub fn draw(&mut self) -> f64 {
+        let (u, v) = (self.uniform(), self.uniform());
+        (-2.0 * u.ln()).sqrt() * (std::f64::consts::TAU * v).cos()
+    }
+}
