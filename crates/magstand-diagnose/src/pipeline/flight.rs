@@ -54,11 +54,15 @@ pub(crate) fn flight_baseline(
     if !is_flight(rec) {
         return Ok(None);
     }
+    let selected;
     let running = match segments(rec) {
-        Some(s) => rec.select_rows(|r| s[r] != "off"),
-        None => rec.clone(),
+        Some(s) => {
+            selected = rec.select_rows(|r| s[r] != "off");
+            &selected
+        }
+        None => rec,
     };
-    let prep = prepare_flight(&running, &FlightConfig::default(), origin)
+    let prep = prepare_flight(running, &FlightConfig::default(), origin)
         .map_err(|e| bad(format!("the flight baseline cannot be fitted: {e}")))?;
     let e = prep.earth_ned_ut;
     let calibration = vec![
