@@ -312,13 +312,28 @@ impl Entry<'_> {
 
     /// A scenario named in the entry, relative to the check file's folder unless builtin or
     /// absolute.
-    fn scenario(&self, key: &str, spec: &str, set: &[String]) -> Result<ValidScenario, CheckError> {
-        let spec = if spec.starts_with("builtin:") || Path::new(spec).is_absolute() {
+    /// Also returns the files it read: the scenario file (not a shipped one) and the recording
+    /// a replay program reads.
+    fn scenario(
+        &self,
+        key: &str,
+        spec: &str,
+        set: &[String],
+    ) -> Result<(ValidScenario, Vec<PathBuf>), CheckError> {
+        let builtin = spec.starts_with("builtin:");
+        let spec = if builtin || Path::new(spec).is_absolute() {
             spec.to_string()
         } else {
             self.file.base_dir.join(spec).display().to_string()
         };
-        Scenario::load_spec(&spec, set).map_err(|e| self.error(key, e.to_string()))
+        let scenario =
+            Scenario::load_spec(&spec, set).map_err(|e| self.error(key, e.to_string()))?;
+        let mut read: Vec<PathBuf> = (!builtin)
+            .then(|| PathBuf::from(&spec))
+            .into_iter()
+            .collect();
+        read.extend(scenario.input_files());
+        Ok((scenario, read))
     }
 
     fn check(self) -> Result<ValidCheck, CheckError> {
@@ -349,7 +364,7 @@ impl Entry<'_> {
                 ));
             }
         };
-        let scenario = self.scenario("scenario", &spec, &set)?;
+        let (scenario, mut inputs) = self.scenario("scenario", &spec, &set)?;
         let runs = self.integer("runs", 2, 100_000)?.ok_or_else(|| {
             self.error(
                 "runs",
@@ -392,9 +407,10 @@ impl Entry<'_> {
             }
             match key.as_str() {
                 "diagnose" => {
-                    let (verdict, n) = self.diagnose(value, &scenario)?;
+                    let (verdict, n, read) = self.diagnose(value, &scenario)?;
                     limits.push(verdict);
                     nominal = Some(n);
+                    inputs.extend(read);
                 }
                 "export" => limits.extend(self.export(value)?),
                 _ => limits.extend(self.figure(key, value, &method)?),
@@ -420,6 +436,7 @@ impl Entry<'_> {
             study,
             limits,
             nominal,
+            inputs,
         })
     }
 
@@ -555,7 +572,7 @@ impl Entry<'_> {
         &self,
         value: &toml::Value,
         scenario: &ValidScenario,
-    ) -> Result<(Limit, ValidScenario), CheckError> {
+    ) -> Result<(Limit, ValidScenario, Vec<PathBuf>), CheckError> {
         let Some(table) = value.as_table() else {
             return Err(self.error(
                 "diagnose",
@@ -596,9 +613,12 @@ impl Entry<'_> {
                 ),
             ));
         }
-        let nominal = match table.get("nominal") {
-            None => magstand_diagnose::unstated_nominal()
-                .map_err(|e| self.error("diagnose.nominal", e.to_string()))?,
+        let (nominal, read) = match table.get("nominal") {
+            None => (
+                magstand_diagnose::unstated_nominal()
+                    .map_err(|e| self.error("diagnose.nominal", e.to_string()))?,
+                Vec::new(),
+            ),
             Some(toml::Value::String(spec)) => self.scenario("diagnose.nominal", spec, &[])?,
             Some(v) => {
                 return Err(self.error(
@@ -627,6 +647,7 @@ impl Entry<'_> {
                 names: names.into_iter().collect(),
             },
             nominal,
+            read,
         ))
     }
 
@@ -716,6 +737,9 @@ pub struct ValidCheck {
     pub limits: Vec<Limit>,
     /// The nominal stand the diagnosis compares with, when the check has a verdict.
     pub nominal: Option<ValidScenario>,
+    /// The files the check reads: its scenario and nominal files (not shipped ones) and the
+    /// recordings they replay.
+    pub inputs: Vec<PathBuf>,
 }
 
 impl ValidCheck {
@@ -743,19 +767,9 @@ impl ValidChecks {
     /// Every file the checks read beside the check file (scenarios, nominal stands and the
     /// recordings they replay), for a caller that must not write over them.
     pub fn input_files(&self) -> Vec<PathBuf> {
-        let mut files = Vec::new();
-        for c in &self.checks {
-            if !c.scenario_spec.starts_with("builtin:") {
-                files.push(PathBuf::from(c.study.scenario().origin()));
-            }
-            files.extend(c.study.scenario().input_files());
-            if let Some(n) = &c.nominal {
-                if !n.origin().starts_with("builtin:") && n.origin() != "default nominal stand" {
-                    files.push(PathBuf::from(n.origin()));
-                }
-                files.extend(n.input_files());
-            }
-        }
-        files
+        self.checks
+            .iter()
+            .flat_map(|c| c.inputs.iter().cloned())
+            .collect()
     }
 }

@@ -202,3 +202,25 @@ fn the_shipped_example_checks_the_paper_method_the_default_choice_and_an_ardupil
             .any(|c| c.scenario_spec == "builtin:czyba2015-stair")
     );
 }
+
+#[test]
+fn the_files_a_check_reads_are_its_scenario_and_nominal_files_not_shipped_ones() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = magstand_sim::builtin::get("thermal").unwrap();
+    std::fs::write(dir.path().join("stand.toml"), text).unwrap();
+    std::fs::write(dir.path().join("nominal.toml"), text).unwrap();
+    let file = "[[check]]\nname = \"a\"\nscenario = \"stand.toml\"\nruns = 2\n\
+                diagnose.verdict = []\ndiagnose.nominal = \"nominal.toml\"\n\
+                [[check]]\nname = \"b\"\nscenario = \"builtin:thermal\"\nruns = 2\n\
+                diagnose.verdict = []\n";
+    let checks = CheckFile::from_toml_str(file, "CHECKS.toml", dir.path())
+        .and_then(CheckFile::check)
+        .unwrap();
+    assert_eq!(
+        checks.input_files(),
+        [
+            dir.path().join("stand.toml"),
+            dir.path().join("nominal.toml")
+        ]
+    );
+}
