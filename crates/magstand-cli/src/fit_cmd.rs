@@ -5,6 +5,7 @@ use anyhow::{Context, Result, bail};
 use clap::{Args, ValueEnum};
 
 use crate::files;
+use crate::simulate_cmd::load_scenario;
 use magstand_core::{AXES, recording_csv};
 use magstand_ident::{
     Estimation, Family, FitConfig, FitSetting, InputKind, Model, Structure, evenly_spaced_centers,
@@ -31,6 +32,11 @@ pub enum MethodArg {
     Px4,
     /// A cubic with intercept.
     Cubic,
+    /// The stand's electrical physics replayed from the recording's commands and calibrated
+    /// (dead zone, spin-up, supply, current law, wiring gains, motors-off field and timing;
+    /// the diagnosis's calibration kept as a model). With --scenario, the constants it writes
+    /// out are held.
+    Physics,
 }
 
 /// Input on the command line.
@@ -63,9 +69,17 @@ pub struct FitArgs {
     /// Where to write the model (JSON).
     #[arg(long = "model-out")]
     model_out: PathBuf,
-    /// Model family.
-    #[arg(long, value_enum, default_value = "local-linear")]
-    method: MethodArg,
+    /// Model family. Default: every family that applies is fitted without the held-out time
+    /// blocks and the one with the lowest held-out error is kept, a family with fewer
+    /// parameters winning when within one standard error (the table is printed and stored in
+    /// the model file). Any structure, input, estimation or weighting flag fits the local
+    /// linear family as asked instead.
+    #[arg(long, value_enum)]
+    method: Option<MethodArg>,
+    /// The stand for the physics family (a file, or builtin:NAME): the constants it writes out
+    /// are held, the others calibrated. Without it nothing about the stand is assumed.
+    #[arg(long)]
+    scenario: Option<String>,
     /// Number of local models, evenly spaced on 0..1 (width 2(K-1) unless --width).
     #[arg(long)]
     rbf: Option<usize>,
@@ -79,9 +93,9 @@ pub struct FitArgs {
     /// for the automatic structure.
     #[arg(long, value_enum)]
     estimation: Option<EstimationArg>,
-    /// Model input.
-    #[arg(long, value_enum, default_value = "throttle")]
-    inputs: InputArg,
+    /// Model input (default: the overall throttle).
+    #[arg(long, value_enum)]
+    inputs: Option<InputArg>,
     /// Row weighting. Default: none with structure flags (the paper's), inverse-variance for
     /// the automatic structure.
     #[arg(long, value_enum)]
@@ -156,7 +170,7 @@ fn take_out_earth_field(
     let cfg = FlightConfig {
         earth: field,
         input: match a.inputs {
-            InputArg::Current => FlightInput::Current,
+            Some(InputArg::Current) => FlightInput::Current,
             _ => FlightInput::Throttle,
         },
         max_delay_s: a.max_delay_s,
@@ -220,7 +234,7 @@ fn config(a: &FitArgs) -> Result<FitConfig> {
         EstimationArg::Local => Estimation::Local,
         EstimationArg::Global => Estimation::Global,
     });
-    let mut cfg = match a.method {
+    let mut cfg = match a.method.unwrap_or(MethodArg::LocalLinear) {
         MethodArg::LocalLinear if structure_flags => {
             let est = estimation.unwrap_or(Estimation::Local);
             let centers = match (&a.centers, a.rbf) {
@@ -245,11 +259,12 @@ fn config(a: &FitArgs) -> Result<FitConfig> {
         MethodArg::Ardupilot => FitConfig::baseline(Family::ArduPilot),
         MethodArg::Px4 => FitConfig::baseline(Family::Px4),
         MethodArg::Cubic => FitConfig::baseline(Family::Cubic),
+        MethodArg::Physics => bail!("--method physics is not a local linear fit"),
     };
     if let Some(w) = a.weighting {
         cfg.weighted = matches!(w, WeightingArg::InverseVariance);
     }
-    cfg.input = match a.inputs {
+    cfg.input = match a.inputs.unwrap_or(InputArg::Throttle) {
         InputArg::Throttle => InputKind::Throttle,
         InputArg::Motors => InputKind::Motors,
         InputArg::Current => InputKind::Current,
@@ -354,10 +369,142 @@ fn print_compatibility(model: &Model, rec: &magstand_core::Recording, origin: &s
     Ok(())
 }
 
+/// What the arguments ask for.
+enum Plan {
+    /// One local linear (or autopilot, or cubic) fit as configured.
+    Local(magstand_ident::ValidFitConfig),
+    /// The stand's physics.
+    Physics,
+    /// Every family that applies, one kept.
+    Choose,
+}
+
+/// The plan the arguments describe: the automatic choice unless a family or any structure,
+/// input, estimation or weighting flag is given.
+fn plan(a: &FitArgs) -> Result<Plan> {
+    let local_flags = a.rbf.is_some()
+        || a.centers.is_some()
+        || a.width.is_some()
+        || a.inputs.is_some()
+        || a.estimation.is_some()
+        || a.weighting.is_some()
+        || a.max_models != 10;
+    match a.method {
+        None if !local_flags => Ok(Plan::Choose),
+        Some(MethodArg::Physics) if local_flags => bail!(
+            "--method physics takes none of --rbf, --centers, --width, --inputs, --estimation, --weighting, --max-models: its structure is the stand's physics"
+        ),
+        Some(MethodArg::Physics) => Ok(Plan::Physics),
+        _ if a.scenario.is_some() => bail!(
+            "--scenario describes the stand for --method physics (or the automatic choice); a local linear fit does not use it"
+        ),
+        _ => Ok(Plan::Local(config(a)?.check()?)),
+    }
+}
+
+/// Prints the physics model's summary: what was calibrated and its held-out error.
+fn print_physics(p: &magstand_diagnose::model_choice::PhysicsFit) {
+    let d = &p.diagnosis;
+    println!(
+        "model: physics (the stand's electrical physics replayed from the recording's commands; nominal stand: {})",
+        d.scenario
+    );
+    let calibrated: Vec<String> = d
+        .baseline
+        .calibration
+        .iter()
+        // The stand's constants and the timing; the wiring coefficients are in the file.
+        .filter(|c| c.name.contains('.') || c.name == "command_lead")
+        .map(|c| {
+            format!(
+                "{} = {} {}",
+                c.name,
+                magstand_diagnose::diagnosis::value_with_sd(c.value, c.sd),
+                c.unit
+            )
+        })
+        .collect();
+    if !calibrated.is_empty() {
+        println!("calibrated: {}", calibrated.join(", "));
+    }
+    let named: Vec<&str> = d.verdict.iter().map(String::as_str).collect();
+    if !named.is_empty() {
+        println!(
+            "effects the data demanded (see `magstand diagnose`): {}",
+            named.join(", ")
+        );
+    }
+    let after = d
+        .effects
+        .iter()
+        .rev()
+        .find(|e| e.name != magstand_diagnose::UNEXPLAINED)
+        .map_or(d.baseline.holdout_rmse_ut, |e| e.holdout_rmse_after_ut);
+    println!(
+        "{} rows ({} in held-out time blocks); held-out RMSE x {:.3} y {:.3} z {:.3} uT",
+        d.settings.rows[0] + d.settings.rows[1],
+        d.settings.rows[1],
+        after[0],
+        after[1],
+        after[2]
+    );
+}
+
+/// Prints the table of an automatic choice.
+fn print_choice(c: &magstand_ident::family_choice::FamilyChoice) {
+    println!(
+        "model families, judged on {} held-out rows in {} time blocks:",
+        c.holdout_rows, c.holdout_blocks
+    );
+    println!(
+        "  {:<18} {:>6} {:>27} {:>24}",
+        "family", "params", "holdout_rmse_ut x / y / z", "excess over best (uT^2)"
+    );
+    for f in &c.families {
+        let mark = if f.family == c.chosen {
+            "  <- chosen"
+        } else {
+            ""
+        };
+        match (f.holdout_rmse_ut, f.parameters) {
+            (Some(r), Some(p)) => println!(
+                "  {:<18} {:>6} {:>8.4} {:>8.4} {:>8.4} {:>24}{mark}",
+                f.family,
+                p,
+                r[0],
+                r[1],
+                r[2],
+                format!(
+                    "{:.2e} +- {:.1e}",
+                    f.excess_ut2.unwrap_or(0.0),
+                    f.excess_se_ut2.unwrap_or(0.0)
+                )
+            ),
+            _ => println!(
+                "  {:<18} {:>6} {}",
+                f.family,
+                "-",
+                f.note.as_deref().unwrap_or("not scored")
+            ),
+        }
+    }
+    println!("rule: {}", c.rule);
+    println!("chosen: {}: {}", c.chosen, c.reason);
+}
+
 /// Runs `magstand fit`.
 pub fn run(a: FitArgs) -> Result<()> {
-    let cfg = config(&a)?.check()?;
-    files::refuse_overwriting_inputs(&[&a.recording], &[&a.model_out])?;
+    let plan = plan(&a)?;
+    let nominal = match (&plan, &a.scenario) {
+        (Plan::Local(_), _) => None,
+        (_, Some(s)) => Some(load_scenario(s, &[])?),
+        (_, None) => Some(magstand_diagnose::unstated_nominal()?),
+    };
+    let mut inputs = vec![a.recording.clone()];
+    if let (Some(s), Some(n)) = (&a.scenario, &nominal) {
+        inputs.extend(files::scenario_inputs(s, n));
+    }
+    files::refuse_overwriting_inputs(&inputs, &[&a.model_out])?;
     let mut rec = recording_csv::read(&a.recording)?;
     let origin = a.recording.display().to_string();
     // Printed after the model is written: a reader that closes stdout early must not cost it.
@@ -369,13 +516,56 @@ pub fn run(a: FitArgs) -> Result<()> {
         rec = taken_out;
         earth_summary = Some(summary);
     }
-    let model = cfg.fit_recording_or(&rec, &origin, flight_reference)?;
     files::ensure_parent(&a.model_out)?;
-    model
-        .save(&a.model_out)
-        .with_context(|| format!("writing {}", a.model_out.display()))?;
+    let save_err = || format!("writing {}", a.model_out.display());
+    let mut choice_to_print = None;
+    let model = match (plan, nominal) {
+        (Plan::Local(cfg), _) => cfg.fit_recording_or(&rec, &origin, flight_reference)?,
+        (Plan::Physics, Some(nominal)) => {
+            let split = magstand_diagnose::model_choice::identification_split(&rec).check()?;
+            let p = magstand_diagnose::model_choice::fit_physics(&rec, &origin, &nominal, &split)?;
+            p.model.save(&a.model_out).with_context(save_err)?;
+            if let Some(s) = earth_summary {
+                println!("{s}");
+            }
+            print_physics(&p);
+            println!("wrote {}", a.model_out.display());
+            return Ok(());
+        }
+        (_, nominal) => {
+            let nominal = match nominal {
+                Some(n) => n,
+                None => magstand_diagnose::unstated_nominal()?,
+            };
+            let (chosen, choice) = magstand_diagnose::model_choice::choose_model(
+                &rec,
+                &origin,
+                &nominal,
+                flight_reference,
+            )?;
+            match chosen {
+                magstand_diagnose::model_choice::ChosenModel::Physics(m) => {
+                    m.save(&a.model_out).with_context(save_err)?;
+                    if let Some(s) = earth_summary {
+                        println!("{s}");
+                    }
+                    print_choice(&choice);
+                    println!("wrote {}", a.model_out.display());
+                    return Ok(());
+                }
+                magstand_diagnose::model_choice::ChosenModel::LocalLinear(m) => {
+                    choice_to_print = Some(choice);
+                    *m
+                }
+            }
+        }
+    };
+    model.save(&a.model_out).with_context(save_err)?;
     if let Some(s) = earth_summary {
         println!("{s}");
+    }
+    if let Some(c) = &choice_to_print {
+        print_choice(c);
     }
     print_summary(&model);
     print_compatibility(&model, &rec, &origin)?;

@@ -17,7 +17,10 @@
 //!     "variance_ut2": [[c0x, c0y, c0z], [c1x, ...], [c2x, ...]],
 //!     "floor_ut2": [x, y, z],
 //!     "full_load_a": 48.0
-//!   }
+//!   },
+//!   "method": "physics",                  // optional: written by `magstand fit`
+//!   "choice": {...}                       // optional: `fit`'s automatic choice, as in the
+//!                                         // local linear model file
 //! }
 //! ```
 //!
@@ -88,6 +91,12 @@ pub struct AugmentedModel {
     /// Noise variance law of the residual; `None` in files written before it was stored.
     #[serde(default)]
     pub noise: Option<NoiseLaw>,
+    /// `"physics"` when written by `magstand fit` (absent from a diagnosis's model file).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub method: Option<String>,
+    /// When `fit` chose the family automatically: what was tried and why this one won.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub choice: Option<magstand_ident::family_choice::FamilyChoice>,
 }
 
 /// Largest noise-law coefficient or floor a model file may carry, µT² ((1e5 µT)²).
@@ -223,6 +232,33 @@ impl AugmentedModel {
         Ok(self.sd_at_loads(&load_a))
     }
 
+    /// The predicted reading at every row of `rec`: the motors-off field plus the
+    /// disturbance, µT. Its difference from the recorded reading is the model's residual.
+    pub fn reading_column(
+        &self,
+        rec: &Recording,
+        origin: &str,
+    ) -> Result<Vec<Vec3>, DiagnoseError> {
+        let (dist, _) = self.predict(rec, origin)?;
+        let reference = self.reference_ut();
+        Ok(dist.into_iter().map(|d| d + reference).collect())
+    }
+
+    /// The motors-off field the model fitted, µT.
+    pub fn reference_ut(&self) -> Vec3 {
+        self.columns
+            .iter()
+            .position(|c| c == "reference")
+            .map_or(Vec3::zeros(), |i| Vec3::from(self.coefficients[i]))
+    }
+
+    /// The numbers the calibration chose: every coefficient of every axis, each effect's
+    /// nonlinear parameters, and the command timing. What a comparison of model families
+    /// counts as a model's size.
+    pub fn parameter_count(&self) -> usize {
+        3 * self.coefficients.len() + self.effects.iter().map(|e| e.theta.len()).sum::<usize>() + 1
+    }
+
     /// The noise law's sd at each motor current (A), µT.
     fn sd_at_loads(&self, load_a: &[f64]) -> Option<Vec<Vec3>> {
         let law = self.noise.as_ref()?;
@@ -311,11 +347,7 @@ impl AugmentedModel {
                 built.design.names.join(", ")
             )));
         }
-        let reference = self
-            .columns
-            .iter()
-            .position(|c| c == "reference")
-            .map_or(Vec3::zeros(), |i| Vec3::from(self.coefficients[i]));
+        let reference = self.reference_ut();
         let dist = built
             .design
             .predict(&self.coefficients)

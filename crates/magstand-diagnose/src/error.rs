@@ -52,4 +52,7 @@ pub enum DiagnoseError {
     /// An output file could not be written.
     #[error(transparent)]
     Output(#[from] magstand_core::CoreError),
+    /// A local linear family of the automatic choice could not be fitted.
+    #[error(transparent)]
+    Identification(#[from] magstand_ident::IdentError),
 }

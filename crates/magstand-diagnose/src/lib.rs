@@ -69,6 +69,7 @@ pub mod effects;
 mod error;
 mod fit;
 mod locate;
+pub mod model_choice;
 mod optimize;
 mod pipeline;
 pub mod split;

@@ -40,6 +40,8 @@ fn coefficients_survive_the_file_bit_for_bit() {
             floor_ut2: [hard[1], hard[2], hard[3]],
             full_load_a: 47.123456789012345,
         }),
+        method: Some("physics".into()),
+        choice: None,
     };
     let path = std::env::temp_dir().join(format!("magstand-bit-exact-{}.json", std::process::id()));
     model.save(&path).unwrap();

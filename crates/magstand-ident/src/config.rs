@@ -360,10 +360,28 @@ impl ValidFitConfig {
     }
 }
 
+/// What a fit leaves on the rows it held out: the evidence a comparison of models rests on.
+#[derive(Debug, Clone, PartialEq)]
+pub struct HeldOut {
+    /// Whether each row was held out of the training fit ([`Dataset::holdout_mask`]).
+    pub mask: Vec<bool>,
+    /// Residual of the training fit (fitted without the held-out rows) at every row, µT; only
+    /// the held-out rows' are out of sample.
+    pub residuals_ut: Vec<Vec3>,
+}
+
 impl Fit for ValidFitConfig {
     type Output = Model;
 
     fn fit(&self, data: &Dataset) -> Result<Model, IdentError> {
+        Ok(self.fit_holding_out(data)?.0)
+    }
+}
+
+impl ValidFitConfig {
+    /// Fits, and returns with the model the training fit's residuals that gave its held-out
+    /// RMSE (at no extra cost: the fit makes them anyway).
+    pub fn fit_holding_out(&self, data: &Dataset) -> Result<(Model, HeldOut), IdentError> {
         let holdout = data.holdout_mask();
         // Structure selection scores on its own blocks, never on the held-out ones.
         let blocks = data.time_blocks();
@@ -431,7 +449,13 @@ impl Fit for ValidFitConfig {
             holdout_rmse_ut,
             terms,
         });
-        Ok(model)
+        Ok((
+            model,
+            HeldOut {
+                mask: holdout,
+                residuals_ut: r_train,
+            },
+        ))
     }
 }
 

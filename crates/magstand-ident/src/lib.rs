@@ -46,6 +46,7 @@ pub mod compatibility;
 mod config;
 mod dataset;
 mod error;
+pub mod family_choice;
 pub mod flight;
 pub mod least_squares;
 pub mod local_linear;
@@ -56,7 +57,8 @@ pub mod noise_model;
 pub mod structure;
 
 pub use config::{
-    Family, Fit, FitConfig, Predict, ValidFitConfig, evenly_spaced_centers, paper_ratio_width,
+    Family, Fit, FitConfig, HeldOut, Predict, ValidFitConfig, evenly_spaced_centers,
+    paper_ratio_width,
 };
 pub use dataset::{
     Dataset, InputKind, InputSpec, MIN_ROWS, OFF_COMMAND, motors_off, motors_off_reference,

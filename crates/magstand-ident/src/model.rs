@@ -13,9 +13,15 @@
 //!              | {"kind": "polynomial", "coefficients": [[c0, c1, ...], [...], [...]]},
 //!   "sd": {"knots": [...], "sd_ut": [[...], [...], [...]]} | null,   // noise sd per axis
 //!   "summary": {...} | null,
-//!   "identified": {"lo": u0, "hi": u1, "quantiles": [q0, q5, ..., q100]}   // optional
+//!   "identified": {"lo": u0, "hi": u1, "quantiles": [q0, q5, ..., q100]},  // optional
+//!   "choice": {"chosen": "automatic", "reason": "...", "rule": "...",      // optional: only
+//!              "holdout_rows": n, "holdout_blocks": b,                     // when `fit` chose
+//!              "families": [{"family": "physics", "parameters": 19,        // the family
+//!                            "holdout_rmse_ut": [x, y, z], "excess_ut2": d,
+//!                            "excess_se_ut2": se, "note": null}, ...]}
 //! }
 //! ```
+//! `choice` records the automatic choice among model families ([`crate::family_choice`]).
 //! `identified` is the normalized input range the model was identified on, with the 21
 //! quantiles (every 5 %) of the identification rows' input with the motors running. Beyond
 //! that range a model continues linearly from its edge: a local-linear net keeps the
@@ -115,6 +121,9 @@ pub struct Model {
     /// The input range it was identified on; beyond it the model continues linearly.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub identified: Option<IdentifiedRange>,
+    /// When the family was chosen automatically: what was tried and why this one won.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub choice: Option<crate::family_choice::FamilyChoice>,
 }
 
 /// The normalized input range a model was identified on.
@@ -163,6 +172,26 @@ pub struct Scratch {
 }
 
 impl Model {
+    /// The numbers the fit chose: every coefficient of every axis, the motors-off reference,
+    /// and a local linear structure's centres and widths. What a comparison of model families
+    /// counts as a model's size.
+    pub fn parameter_count(&self) -> usize {
+        let structure = match &self.structure {
+            Structure::LocalLinear(n) => {
+                2 * n.partition.len()
+                    + n.coefficients
+                        .iter()
+                        .flatten()
+                        .map(|c| c.len())
+                        .sum::<usize>()
+            }
+            Structure::Polynomial { coefficients } => {
+                coefficients.iter().flatten().filter(|c| **c != 0.0).count()
+            }
+        };
+        structure + 3
+    }
+
     /// Builds a model from its parts.
     pub fn new(
         method: &str,
@@ -181,6 +210,7 @@ impl Model {
             sd,
             summary: None,
             identified: None,
+            choice: None,
         }
     }
 

@@ -173,6 +173,8 @@ fn model_file(
         columns: m.built.design.names.clone(),
         coefficients: m.fitted.coef.clone(),
         noise: Some(m.noise.to_noise(m.built.full_load_a)),
+        method: None,
+        choice: None,
     }
 }
 

@@ -1,0 +1,271 @@
+//! The stand's physics as a fitted model (`magstand fit --method physics`), and the automatic
+//! choice among model families that `magstand fit` makes by default.
+//!
+//! # The physics model
+//!
+//! [`fit_physics`] is the diagnosis's calibration, kept as a model: the recording's own
+//! commands replayed through the nominal stand (dead zone, spin-up, supply with `bat_v`
+//! where logged, current law), with every constant the scenario leaves out calibrated, the
+//! wiring gains, the current-law cubic and the motors-off field fitted by least squares, and
+//! any effect the data demand switched on (the diagnosis's forward search: only terms that
+//! replicate). It is the same code as `magstand diagnose`, not a copy: the model is the
+//! diagnosis's [`AugmentedModel`]. Constants the scenario writes out are held.
+//!
+//! # The choice
+//!
+//! [`choose_model`] fits each family on the recording without its held-out time blocks (the
+//! identification split: every fifth block of 1/50 of the recording, at most 1 s) and keeps
+//! one by the rule of [`magstand_ident::family_choice`]:
+//!
+//! | family | tried when |
+//! |---|---|
+//! | `automatic` (local linear, automatic structure, throttle) | always |
+//! | `automatic-current` (the same on `bat_a`) | `bat_a` is logged |
+//! | `automatic-motors` (the same on each motor's command) | the motor commands differ |
+//! | `physics` | a stand recording (not a flight) of at most [`PHYSICS_MAX_ROWS`] rows |
+use magstand_core::{Recording, Vec3};
+use magstand_ident::family_choice::{Contender, FamilyChoice, choose};
+use magstand_ident::{Dataset, FitConfig, InputKind, Model, ValidFitConfig};
+use magstand_sim::ValidScenario;
+
+use crate::augmented_model::AugmentedModel;
+use crate::diagnosis::Diagnosis;
+use crate::{DiagnoseConfig, DiagnoseError, diagnose};
+
+/// Family id of the physics model.
+pub const PHYSICS: &str = "physics";
+
+/// Most rows the automatic choice fits the physics family on: each of its parameter searches
+/// replays the whole recording, about a second per 25,000 rows. A longer recording is fitted
+/// by the other families, and the table says why physics was not tried (`fit --method
+/// physics` fits it anyway).
+pub const PHYSICS_MAX_ROWS: usize = 200_000;
+
+/// The physics model and the diagnosis it came from.
+#[derive(Debug, Clone)]
+pub struct PhysicsFit {
+    /// The calibrated physics.
+    pub model: AugmentedModel,
+    /// The diagnosis (its calibration and any effects the data demanded).
+    pub diagnosis: Diagnosis,
+}
+
+/// Fits the stand's physics to `rec` (named `origin`), with the split of `config`.
+pub fn fit_physics(
+    rec: &Recording,
+    origin: &str,
+    nominal: &ValidScenario,
+    config: &crate::ValidConfig,
+) -> Result<PhysicsFit, DiagnoseError> {
+    let diagnosis = diagnose(rec, origin, nominal, config)?;
+    let mut model = diagnosis
+        .model
+        .clone()
+        .ok_or_else(|| DiagnoseError::Recording {
+            origin: origin.into(),
+            message: "the calibration gave no model".into(),
+        })?;
+    model.method = Some(PHYSICS.into());
+    Ok(PhysicsFit { model, diagnosis })
+}
+
+/// The split settings under which the diagnosis holds out the same rows as an identification
+/// fit of `rec` ([`Dataset::holdout_mask`]): blocks of 1/50 of the span (at most 1 s), every
+/// fifth held out.
+pub fn identification_split(rec: &Recording) -> DiagnoseConfig {
+    let span = rec.t_s.last().copied().unwrap_or(0.0) - rec.t_s.first().copied().unwrap_or(0.0);
+    DiagnoseConfig {
+        block_s: Some((span / 50.0).clamp(1e-6, 1.0)),
+        holdout_every: 5,
+        ..Default::default()
+    }
+}
+
+/// The model a choice kept.
+#[derive(Debug, Clone)]
+pub enum ChosenModel {
+    /// A local linear model (on throttle, current or each motor's command).
+    LocalLinear(Box<Model>),
+    /// The stand's physics.
+    Physics(Box<AugmentedModel>),
+}
+
+/// Whether any motor's command differs from another's in at least 1 % of the rows by more
+/// than 0.001: only then can a per-motor model be told from a throttle one.
+fn commands_differ(rec: &Recording) -> bool {
+    if rec.overall_only || rec.thr.len() < 2 {
+        return false;
+    }
+    let differing = (0..rec.len())
+        .filter(|&r| {
+            let (lo, hi) = rec
+                .thr
+                .iter()
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), m| {
+                    (a.min(m[r]), b.max(m[r]))
+                });
+            hi - lo > 1e-3
+        })
+        .count();
+    differing * 100 >= rec.len()
+}
+
+/// Fits every family that applies to `rec` and keeps one by the rule of
+/// [`magstand_ident::family_choice`]. `fallback_reference_ut` is a flight's motors-off field
+/// (see [`Dataset::from_recording_or`]); `nominal` is the stand the physics family starts from.
+pub fn choose_model(
+    rec: &Recording,
+    origin: &str,
+    nominal: &ValidScenario,
+    fallback_reference_ut: Option<Vec3>,
+) -> Result<(ChosenModel, FamilyChoice), DiagnoseError> {
+    let local = |input: InputKind| -> Result<(Model, Vec<Vec3>, Vec<bool>), DiagnoseError> {
+        let cfg: ValidFitConfig = FitConfig::automatic().with_input(input).check()?;
+        let data = Dataset::from_recording_or(rec, input, origin, fallback_reference_ut)?;
+        let (model, held) = cfg.fit_holding_out(&data)?;
+        Ok((model, held.residuals_ut, held.mask))
+    };
+    let physics = || -> Result<PhysicsFit, String> {
+        if magstand_ident::flight::is_flight(rec) {
+            return Err("not tried: a flight, not a restrained stand".into());
+        }
+        if rec.len() > PHYSICS_MAX_ROWS {
+            return Err(format!(
+                "not tried: {} rows, above the {PHYSICS_MAX_ROWS} the choice fits it on (`--method physics` fits it anyway)",
+                rec.len()
+            ));
+        }
+        let split = identification_split(rec)
+            .check()
+            .map_err(|e| e.to_string())?;
+        fit_physics(rec, origin, nominal, &split).map_err(|e| e.to_string())
+    };
+    let tried = |applies: bool, input: InputKind, why: &str| {
+        if applies {
+            local(input).map_err(|e| e.to_string())
+        } else {
+            Err(why.to_string())
+        }
+    };
+    let ((throttle, current, motors), physics) = rayon::join(
+        || {
+            (
+                local(InputKind::Throttle),
+                tried(
+                    rec.bat_a.is_some(),
+                    InputKind::Current,
+                    "not tried: no `bat_a` column",
+                ),
+                tried(
+                    commands_differ(rec),
+                    InputKind::Motors,
+                    "not tried: the motor commands never differ",
+                ),
+            )
+        },
+        physics,
+    );
+    // The family every recording can take: its failure is the recording's, and says so.
+    let throttle = throttle?;
+    // The split every family is judged on: the identification fit's held-out rows, less any
+    // the physics fit's own split (which closes gaps) did not hold out.
+    let mut mask = throttle.2.clone();
+    let physics_split = crate::split::Split::new(&rec.t_s, identification_split(rec).block_s, 5);
+    for (m, p) in mask.iter_mut().zip(&physics_split.holdout) {
+        *m &= *p;
+    }
+    let blocks: Vec<u64> = physics_split.block.iter().map(|b| *b as u64).collect();
+    let physics_residuals = physics.as_ref().map_err(Clone::clone).and_then(|p| {
+        let reading = p
+            .model
+            .reading_column(rec, origin)
+            .map_err(|e| e.to_string())?;
+        Ok(rec
+            .mag_ut
+            .iter()
+            .zip(&reading)
+            .map(|(m, r)| m - r)
+            .collect::<Vec<Vec3>>())
+    });
+    let contender =
+        |family: &str, fit: Result<&(Model, Vec<Vec3>, Vec<bool>), &String>| Contender {
+            family: family.into(),
+            parameters: fit.map_or(0, |f| f.0.parameter_count()),
+            residuals_ut: fit.map(|f| f.1.clone()).map_err(Clone::clone),
+        };
+    let contenders = vec![
+        contender(magstand_ident::methods::DEFAULT_ID, Ok(&throttle)),
+        contender("automatic-current", current.as_ref()),
+        contender("automatic-motors", motors.as_ref()),
+        Contender {
+            family: PHYSICS.into(),
+            parameters: physics.as_ref().map_or(0, |p| p.model.parameter_count()),
+            residuals_ut: physics_residuals,
+        },
+    ];
+    let choice = choose(&contenders, &mask, &blocks).ok_or_else(|| DiagnoseError::Recording {
+        origin: origin.into(),
+        message: "no model family could be judged on the held-out rows".into(),
+    })?;
+    let with_choice = |mut m: Model| {
+        m.choice = Some(choice.clone());
+        ChosenModel::LocalLinear(Box::new(m))
+    };
+    let chosen = match choice.chosen.as_str() {
+        PHYSICS => {
+            let mut m = physics
+                .map_err(|message| DiagnoseError::Recording {
+                    origin: origin.into(),
+                    message,
+                })?
+                .model;
+            m.choice = Some(choice.clone());
+            ChosenModel::Physics(Box::new(m))
+        }
+        "automatic-current" => with_choice(current.map_err(unreachable_err(origin))?.0),
+        "automatic-motors" => with_choice(motors.map_err(unreachable_err(origin))?.0),
+        _ => with_choice(throttle.0),
+    };
+    Ok((chosen, choice))
+}
+
+/// A chosen family's fit failing: cannot happen (only scored families are chosen), but is an
+/// error rather than a panic.
+fn unreachable_err(origin: &str) -> impl Fn(String) -> DiagnoseError + '_ {
+    move |message| DiagnoseError::Recording {
+        origin: origin.into(),
+        message,
+    }
+}
+
+impl ChosenModel {
+    /// The family id.
+    pub fn family(&self) -> &str {
+        match self {
+            ChosenModel::LocalLinear(m) => m
+                .choice
+                .as_ref()
+                .map_or(m.method.as_str(), |c| c.chosen.as_str()),
+            ChosenModel::Physics(_) => PHYSICS,
+        }
+    }
+
+    /// Predicted disturbance at every row of `rec` (named `origin` in errors), µT.
+    pub fn dist_column(&self, rec: &Recording, origin: &str) -> Result<Vec<Vec3>, DiagnoseError> {
+        match self {
+            ChosenModel::LocalLinear(m) => {
+                rec.check()?;
+                Ok(m.dist_column(rec))
+            }
+            ChosenModel::Physics(m) => m.dist_column(rec, origin),
+        }
+    }
+
+    /// Writes the model file, atomically.
+    pub fn save(&self, path: &std::path::Path) -> Result<(), DiagnoseError> {
+        match self {
+            ChosenModel::LocalLinear(m) => Ok(m.save(path)?),
+            ChosenModel::Physics(m) => m.save(path),
+        }
+    }
+}
