@@ -165,7 +165,9 @@ fn autopilot_key(a: Autopilot) -> &'static str {
 /// remains after compensation.
 const FIGURE_ALIASES: [(&str, &str); 1] = [("heading_deg", "heading_after_deg")];
 
-/// The method a check names when it gives none: what `magstand fit` does with no options.
+/// The method a check names when it gives none: what `magstand fit` does with no options
+/// (the choice among families, `chosen`), or for an entry with export limits the local linear
+/// family that choice always tries (`automatic`).
 pub const DEFAULT_METHOD: &str = "default";
 
 /// Keys of an entry that are settings rather than limits.
@@ -377,8 +379,14 @@ impl Entry<'_> {
         let method_id = self
             .string("method")?
             .unwrap_or_else(|| DEFAULT_METHOD.to_string());
-        let id = if method_id == DEFAULT_METHOD {
+        // What `fit` does with no options is the choice among families; firmware parameters
+        // come from a local linear model, so an entry that checks them exports the local
+        // linear family the choice always tries (a physics model has no export yet).
+        let exports = self.table.contains_key("export");
+        let id = if method_id == DEFAULT_METHOD && exports {
             methods::DEFAULT_ID.to_string()
+        } else if method_id == DEFAULT_METHOD {
+            methods::CHOSEN_ID.to_string()
         } else {
             method_id.clone()
         };
@@ -411,6 +419,20 @@ impl Entry<'_> {
                     limits.push(verdict);
                     nominal = Some(n);
                     inputs.extend(read);
+                }
+                "export" if !matches!(method.fitter, methods::Fitter::Config(_)) => {
+                    return Err(self.error(
+                        key,
+                        format!(
+                            "the method `{}` has no firmware parameters to check here: export limits need a single-configuration method ({})",
+                            method.id,
+                            methods::catalog()
+                                .iter()
+                                .map(|m| m.id)
+                                .collect::<Vec<_>>()
+                                .join(", ")
+                        ),
+                    ));
                 }
                 "export" => limits.extend(self.export(value)?),
                 _ => limits.extend(self.figure(key, value, &method)?),

@@ -602,10 +602,25 @@ mod tests {
     }
 
     #[test]
-    fn the_default_fit_is_the_methods_default_id() {
-        let a = Wrapper::try_parse_from(["fit", "--recording", "r.csv", "--model-out", "m.json"])
-            .unwrap();
-        let default = magstand_ident::methods::by_id(magstand_ident::methods::DEFAULT_ID).unwrap();
-        assert_eq!(config(&a.fit).unwrap(), default.config);
+    fn the_default_fit_is_the_choice_and_flags_fit_as_asked() {
+        let parse = |extra: &[&str]| {
+            let mut args = vec!["fit", "--recording", "r.csv", "--model-out", "m.json"];
+            args.extend(extra);
+            Wrapper::try_parse_from(args).unwrap().fit
+        };
+        // `magstand check`'s `method = "default"` stands for this choice.
+        assert!(matches!(plan(&parse(&[])).unwrap(), Plan::Choose));
+        assert!(matches!(
+            plan(&parse(&["--method", "physics"])).unwrap(),
+            Plan::Physics
+        ));
+        // A flag of the local linear family is a statement: that family, as asked.
+        let Plan::Local(cfg) = plan(&parse(&["--inputs", "throttle"])).unwrap() else {
+            panic!("--inputs must fit the local linear family");
+        };
+        let automatic =
+            magstand_ident::methods::by_id(magstand_ident::methods::DEFAULT_ID).unwrap();
+        assert_eq!(cfg.config(), &automatic.config);
+        assert!(plan(&parse(&["--method", "physics", "--rbf", "3"])).is_err());
     }
 }

@@ -147,23 +147,32 @@ pub fn choose_model(
             Err(why.to_string())
         }
     };
-    let ((throttle, current, motors), physics) = rayon::join(
+    // Four independent fits: two pairs, one per core.
+    let ((throttle, current), (motors, physics)) = rayon::join(
         || {
-            (
-                local(InputKind::Throttle),
-                tried(
-                    rec.bat_a.is_some(),
-                    InputKind::Current,
-                    "not tried: no `bat_a` column",
-                ),
-                tried(
-                    commands_differ(rec),
-                    InputKind::Motors,
-                    "not tried: the motor commands never differ",
-                ),
+            rayon::join(
+                || local(InputKind::Throttle),
+                || {
+                    tried(
+                        rec.bat_a.is_some(),
+                        InputKind::Current,
+                        "not tried: no `bat_a` column",
+                    )
+                },
             )
         },
-        physics,
+        || {
+            rayon::join(
+                || {
+                    tried(
+                        commands_differ(rec),
+                        InputKind::Motors,
+                        "not tried: the motor commands never differ",
+                    )
+                },
+                physics,
+            )
+        },
     );
     // The family every recording can take: its failure is the recording's, and says so.
     let throttle = throttle?;

@@ -120,6 +120,12 @@ impl Evaluation {
     /// The same, from the model's predicted disturbance per row (`model.dist_column(rec)`),
     /// for a caller that needs the prediction too.
     pub fn from_prediction(model: &Model, rec: &Recording, dist: &[Vec3]) -> Self {
+        Self::from_prediction_at(Vec3::from(model.reference_ut), rec, dist)
+    }
+
+    /// As [`Evaluation::from_prediction`] for any model: `fallback_reference_ut` is the
+    /// motors-off field used when `rec` has no motors-off rows of its own.
+    pub fn from_prediction_at(fallback_reference_ut: Vec3, rec: &Recording, dist: &[Vec3]) -> Self {
         let n = rec.len();
         assert_eq!(
             dist.len(),
@@ -127,8 +133,7 @@ impl Evaluation {
             "one predicted disturbance per row of the recording"
         );
         let off_rows = motors_off_rows(rec);
-        let reference =
-            motors_off_reference(rec, &off_rows).unwrap_or(Vec3::from(model.reference_ut));
+        let reference = motors_off_reference(rec, &off_rows).unwrap_or(fallback_reference_ut);
         // The stand is restrained: its tilt is the mean specific force over the motors-off rows
         // (or all rows). A per-sample accelerometer reading carries rotor vibration of several
         // m/s^2, which would swing a tilt-compensated heading by tens of degrees.

@@ -100,22 +100,29 @@ pub fn run_one(study: &ValidStudy, run: usize) -> Result<Vec<MethodOutcome>, Stu
         .methods
         .iter()
         .map(|m| {
-            let fitted = m
-                .config
-                .clone()
-                .check()
-                .and_then(|c| c.fit_recording(&ident, &origin));
-            let judged = fitted.map_err(|e| e.to_string()).and_then(|model| {
-                within_range(figures(
-                    &model,
-                    &valid,
-                    if m.fixed_structure {
-                        bound.as_ref()
-                    } else {
-                        None
-                    },
-                ))
-            });
+            let judged = match &m.fitter {
+                magstand_ident::methods::Fitter::Config(config) => config
+                    .clone()
+                    .check()
+                    .and_then(|c| c.fit_recording(&ident, &origin))
+                    .map_err(|e| e.to_string())
+                    .and_then(|model| {
+                        let predicted = model.dist_column(&valid);
+                        within_range(figures(
+                            &predicted,
+                            Vec3::from(model.reference_ut),
+                            Some(&model),
+                            &valid,
+                            if m.fixed_structure {
+                                bound.as_ref()
+                            } else {
+                                None
+                            },
+                        ))
+                    }),
+                other => physics_family(other, &ident, &origin, &valid)
+                    .and_then(|(dist, r)| within_range(figures(&dist, r, None, &valid, None))),
+            };
             let (error, figures) = match judged {
                 Ok(f) => (None, Some(f)),
                 Err(e) => (Some(e), None),
@@ -166,9 +173,43 @@ fn within_range(f: Figures) -> Result<Figures, String> {
     }
 }
 
-fn figures(model: &magstand_ident::Model, valid: &Recording, bound: Option<&Bound>) -> Figures {
-    let predicted = model.dist_column(valid);
-    let ev = Evaluation::from_prediction(model, valid, &predicted);
+/// The physics or the chosen family fitted on the identification series; its predicted
+/// disturbance on the validation series and its motors-off field. The nominal stand is the
+/// unstated one: a study's user has not told the model anything about the stand.
+fn physics_family(
+    fitter: &magstand_ident::methods::Fitter,
+    ident: &Recording,
+    origin: &str,
+    valid: &Recording,
+) -> Result<(Vec<Vec3>, Vec3), String> {
+    use magstand_diagnose::model_choice::{choose_model, fit_physics, identification_split};
+    let e = |e: magstand_diagnose::DiagnoseError| e.to_string();
+    let nominal = magstand_diagnose::unstated_nominal().map_err(e)?;
+    let name = "validation series";
+    if *fitter == magstand_ident::methods::Fitter::Physics {
+        let split = identification_split(ident).check().map_err(e)?;
+        let p = fit_physics(ident, origin, &nominal, &split).map_err(e)?;
+        return Ok((
+            p.model.dist_column(valid, name).map_err(e)?,
+            p.model.reference_ut(),
+        ));
+    }
+    let (chosen, _) = choose_model(ident, origin, &nominal, None).map_err(e)?;
+    let reference = match &chosen {
+        magstand_diagnose::model_choice::ChosenModel::LocalLinear(m) => Vec3::from(m.reference_ut),
+        magstand_diagnose::model_choice::ChosenModel::Physics(m) => m.reference_ut(),
+    };
+    Ok((chosen.dist_column(valid, name).map_err(e)?, reference))
+}
+
+fn figures(
+    predicted: &[Vec3],
+    reference_ut: Vec3,
+    model: Option<&magstand_ident::Model>,
+    valid: &Recording,
+    bound: Option<&Bound>,
+) -> Figures {
+    let ev = Evaluation::from_prediction_at(reference_ut, valid, predicted);
     let truth = valid
         .truth
         .as_ref()
@@ -192,7 +233,7 @@ fn figures(model: &magstand_ident::Model, valid: &Recording, bound: Option<&Boun
     });
     let rmse_axis_ut = ev.truth_rmse_ut.unwrap_or([f64::NAN; 3]);
     let param_error = bound.and_then(|b| {
-        let est = crlb::flatten(model)?;
+        let est = crlb::flatten(model?)?;
         Some(std::array::from_fn(|a| {
             est[a].iter().zip(&b.truth[a]).map(|(e, t)| e - t).collect()
         }))
