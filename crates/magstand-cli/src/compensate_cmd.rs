@@ -23,6 +23,17 @@ pub struct CompensateArgs {
     /// Output CSV: the recording with mag_*_ut compensated, plus dist_*_ut and sd_*_ut.
     #[arg(long)]
     out: PathBuf,
+    /// Update the local linear model's coefficients row by row while compensating (recursive
+    /// least squares, forgetting weighted by each local model's membership), so that it
+    /// follows a disturbance that drifts. Each row is compensated with the prediction made
+    /// before it updates the model. On a restrained stand: the update takes each row's
+    /// deviation from the model's motors-off field as the disturbance.
+    #[arg(long)]
+    adapt: bool,
+    /// Forgetting factor of --adapt per row, 0.9 to 0.999999: the memory is about
+    /// 1 / (1 - forgetting) rows.
+    #[arg(long, default_value_t = 0.99, requires = "adapt")]
+    forgetting: f64,
 }
 
 /// The `format` a model file's text declares, if it is JSON with one.
@@ -61,6 +72,42 @@ fn run_augmented(a: &CompensateArgs, model_text: &str) -> Result<()> {
         a.out.display()
     );
     print_truth(against_truth(&rec, &removed(&rec, &out)).map(|(e, _)| e));
+    Ok(())
+}
+
+/// Compensates with the recursive estimation (`--adapt`).
+fn run_adaptive(a: &CompensateArgs, model: &Model, origin: &str) -> Result<()> {
+    use magstand_ident::adaptive::{AdaptConfig, compensate_adaptive};
+    let cfg = AdaptConfig {
+        forgetting: a.forgetting,
+    }
+    .check()
+    .map_err(|e| anyhow::anyhow!(crate::fit_cmd::in_flag_terms(&e.to_string())))?;
+    let rec = recording_csv::read(&a.recording)?;
+    let adapted = compensate_adaptive(model, &rec, origin, &cfg)?;
+    files::ensure_parent(&a.out)?;
+    recording_csv::write(&adapted.recording, &a.out)?;
+    warn_beyond_identified(model, &rec, origin);
+    println!(
+        "compensated {} rows with the model's coefficients updated row by row (forgetting {}, memory about {:.0} rows) -> {}",
+        rec.len(),
+        a.forgetting,
+        1.0 / (1.0 - a.forgetting),
+        a.out.display()
+    );
+    if let Some((adapt, _)) = against_truth(&rec, &adapted.dist_ut) {
+        let fixed = against_truth(&rec, &model.dist_column(&rec)).map(|(e, _)| e);
+        println!(
+            "against ground truth: predicted-disturbance RMSE x {:.3} y {:.3} z {:.3} uT (the fixed model: {})",
+            adapt[0],
+            adapt[1],
+            adapt[2],
+            fixed.map_or("-".into(), |e| format!(
+                "x {:.3} y {:.3} z {:.3} uT",
+                e[0], e[1], e[2]
+            ))
+        );
+    }
     Ok(())
 }
 
@@ -105,10 +152,19 @@ pub fn run(a: CompensateArgs) -> Result<()> {
     let text = magstand_core::input_file::read_document(&a.model)
         .with_context(|| format!("reading the model {}", a.model.display()))?;
     if declared_format(&text).as_deref() == Some(magstand_diagnose::augmented_model::FORMAT) {
+        if a.adapt {
+            anyhow::bail!(
+                "{}: --adapt updates a local linear model's coefficients; this is a physics (augmented) model",
+                a.model.display()
+            );
+        }
         return run_augmented(&a, &text);
     }
     let model = Model::from_json(&text, &a.model.display().to_string())?;
     let origin = a.recording.display().to_string();
+    if a.adapt {
+        return run_adaptive(&a, &model, &origin);
+    }
     let rec = recording_csv::read(&a.recording)?;
     let out = model.compensate(&rec, &origin)?;
     files::ensure_parent(&a.out)?;

@@ -12,8 +12,8 @@ use magstand_ident::{InputKind, Model};
 use magstand_logs::export::json::export_json;
 use magstand_logs::export::per_motor::{describe_per_motor, per_motor_fit, per_motor_params};
 use magstand_logs::export::{
-    LineInput, Span, ardupilot_params, c_header, describe, linear_approximation, px4_params,
-    rust_module,
+    LineInput, Span, ardupilot_params, c_adaptive, c_header, describe, linear_approximation,
+    px4_params, rust_adaptive, rust_module,
 };
 
 /// What to export to.
@@ -32,6 +32,11 @@ enum Target {
     Rust,
     /// A table of the full model and every exported figure, as JSON.
     Json,
+    /// The recursive estimation of `compensate --adapt` as a dependency-free C header: the
+    /// model's coefficients updated on the flight controller, sample by sample.
+    CAdaptive,
+    /// The same recursion as a no_std Rust module.
+    RustAdaptive,
 }
 
 /// The line's input on the command line.
@@ -67,6 +72,10 @@ pub struct ExportArgs {
     /// Output file (default: standard output).
     #[arg(long)]
     out: Option<PathBuf>,
+    /// Forgetting factor of the exported recursion (c-adaptive, rust-adaptive), 0.9 to
+    /// 0.999999; as `compensate --forgetting`.
+    #[arg(long)]
+    forgetting: Option<f64>,
 }
 
 /// Runs `magstand export`.
@@ -95,7 +104,23 @@ pub fn run(a: ExportArgs) -> Result<()> {
         Some(InputArg::Current) => LineInput::Current,
         None => LineInput::of(&model),
     };
-    if a.input.is_some() && matches!(a.target, Target::C | Target::Rust) {
+    let adaptive = matches!(a.target, Target::CAdaptive | Target::RustAdaptive);
+    if a.forgetting.is_some() && !adaptive {
+        bail!("--forgetting sets the recursion of --to c-adaptive or rust-adaptive");
+    }
+    let adapt_config = magstand_ident::adaptive::AdaptConfig {
+        forgetting: a
+            .forgetting
+            .unwrap_or(magstand_ident::adaptive::AdaptConfig::default().forgetting),
+    }
+    .check()
+    .map_err(|e| anyhow::anyhow!(crate::fit_cmd::in_flag_terms(&e.to_string())))?;
+    if a.input.is_some()
+        && matches!(
+            a.target,
+            Target::C | Target::Rust | Target::CAdaptive | Target::RustAdaptive
+        )
+    {
         bail!(
             "--input chooses the autopilot line's input; the firmware exports take the model's own input ({:?})",
             model.input.kind
@@ -115,6 +140,8 @@ pub fn run(a: ExportArgs) -> Result<()> {
     let text = match a.target {
         Target::C => c_header(&model)?,
         Target::Rust => rust_module(&model)?,
+        Target::CAdaptive => c_adaptive(&model, &adapt_config)?,
+        Target::RustAdaptive => rust_adaptive(&model, &adapt_config)?,
         Target::Px4 => {
             let line = linear_approximation(&model, input, span)?;
             eprint!("{}", describe(&line));

@@ -213,6 +213,7 @@ fn flag(setting: FitSetting) -> Option<&'static str> {
         FitSetting::Earth => "--earth",
         FitSetting::MaxDelayS => "--max-delay-s",
         FitSetting::MaxTiltDeg => "--max-tilt-deg",
+        FitSetting::Forgetting => "--forgetting",
         _ => return None,
     })
 }

@@ -22,11 +22,13 @@ pub enum FitSetting {
     MaxDelayS,
     /// Largest tilt kept in a flight.
     MaxTiltDeg,
+    /// Forgetting factor of the recursive estimation.
+    Forgetting,
 }
 
 impl FitSetting {
     /// Every setting.
-    pub const ALL: [FitSetting; 9] = [
+    pub const ALL: [FitSetting; 10] = [
         FitSetting::LocalModels,
         FitSetting::Centers,
         FitSetting::Widths,
@@ -36,6 +38,7 @@ impl FitSetting {
         FitSetting::Earth,
         FitSetting::MaxDelayS,
         FitSetting::MaxTiltDeg,
+        FitSetting::Forgetting,
     ];
 
     /// The name messages use, as written between backticks in them.
@@ -50,6 +53,7 @@ impl FitSetting {
             FitSetting::Earth => "earth",
             FitSetting::MaxDelayS => "max_delay_s",
             FitSetting::MaxTiltDeg => "max_tilt_deg",
+            FitSetting::Forgetting => "forgetting",
         }
     }
 }

@@ -41,6 +41,7 @@
 //! ```
 #![warn(missing_docs)]
 
+pub mod adaptive;
 pub mod baseline;
 pub mod compatibility;
 mod config;

@@ -317,8 +317,15 @@ impl Model {
         rec.check()?;
         self.input.check_recording(rec, origin)?;
         let dist = self.dist_column(rec);
+        Ok(self.compensate_with(rec, &dist))
+    }
+
+    /// The recording with `dist` (one prediction per row, µT) removed from `mag_*_ut`, and
+    /// `dist_{x,y,z}_ut` and this model's `sd_{x,y,z}_ut` added: what [`Model::compensate`]
+    /// writes, for a prediction made otherwise (the recursive estimation's).
+    pub fn compensate_with(&self, rec: &Recording, dist: &[Vec3]) -> Recording {
         let mut out = rec.clone();
-        for (m, d) in out.mag_ut.iter_mut().zip(&dist) {
+        for (m, d) in out.mag_ut.iter_mut().zip(dist) {
             *m -= d;
         }
         let names: Vec<String> = ["dist", "sd"]
@@ -340,7 +347,7 @@ impl Model {
                     .collect(),
             ));
         }
-        Ok(out)
+        out
     }
 
     /// Writes the model as pretty JSON, atomically.

@@ -187,6 +187,29 @@ static inline void magstand_sd(double raw, double out[3]) {
     Ok(h)
 }
 
+/// `e^x` for `x <= 0` in `core` (which has no `exp`), as generated modules carry it.
+pub(crate) const EXP_NONPOSITIVE: &str = r#"/// e^x for x <= 0 (0 below the smallest normal result).
+fn exp_nonpositive(x: f64) -> f64 {
+    const LN2_HI: f64 = 6.93147180369123816490e-01;
+    const LN2_LO: f64 = 1.90821492927058770002e-10;
+    if x < -708.0 {
+        return 0.0;
+    }
+    // k = round(x / ln 2), so that |r| <= ln(2) / 2.
+    let k = (x * core::f64::consts::LOG2_E - 0.5) as i64;
+    let r = (x - k as f64 * LN2_HI) - k as f64 * LN2_LO;
+    let (mut term, mut sum) = (1.0, 1.0);
+    let mut i = 1;
+    while i < 20 {
+        term *= r / i as f64;
+        sum += term;
+        i += 1;
+    }
+    sum * f64::from_bits(((k + 1023) as u64) << 52)
+}
+
+"#;
+
 /// The full model as a `no_std` Rust module with no dependencies and no allocation:
 /// `dist_ut(raw) -> [f64; 3]` and `sd_ut(raw) -> [f64; 3]`. `core` has no `exp`, so the
 /// module carries its own for the non-positive arguments the blending needs (Cody-Waite range
@@ -228,27 +251,8 @@ pub fn rust_module(model: &Model) -> Result<String, LogsError> {
         list(p.knots.iter().copied()),
         nested(p.sd_ut.iter().map(|v| v.iter().copied()), "[", "]"),
     );
-    r += r#"/// e^x for x <= 0 (0 below the smallest normal result).
-fn exp_nonpositive(x: f64) -> f64 {
-    const LN2_HI: f64 = 6.93147180369123816490e-01;
-    const LN2_LO: f64 = 1.90821492927058770002e-10;
-    if x < -708.0 {
-        return 0.0;
-    }
-    // k = round(x / ln 2), so that |r| <= ln(2) / 2.
-    let k = (x * core::f64::consts::LOG2_E - 0.5) as i64;
-    let r = (x - k as f64 * LN2_HI) - k as f64 * LN2_LO;
-    let (mut term, mut sum) = (1.0, 1.0);
-    let mut i = 1;
-    while i < 20 {
-        term *= r / i as f64;
-        sum += term;
-        i += 1;
-    }
-    sum * f64::from_bits(((k + 1023) as u64) << 52)
-}
-
-fn output(raw: f64) -> [f64; 3] {
+    r += EXP_NONPOSITIVE;
+    r += r#"fn output(raw: f64) -> [f64; 3] {
     let u = (raw - LO) / (HI - LO);
     let mut w = [0.0; CENTERS.len()];
     let mut min_e = f64::INFINITY;

@@ -26,10 +26,12 @@ use magstand_ident::{InputKind, Model};
 
 use crate::LogsError;
 
+pub mod adaptive_code;
 pub mod firmware;
 pub mod json;
 pub mod per_motor;
 
+pub use adaptive_code::{c_adaptive, rust_adaptive};
 pub use firmware::{c_header, rust_module};
 
 /// Points over the recorded range at which the line is fitted and judged.
