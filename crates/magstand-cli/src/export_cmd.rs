@@ -8,12 +8,14 @@ use clap::{Args, ValueEnum};
 
 use crate::files;
 use magstand_core::recording_csv;
-use magstand_ident::{InputKind, Model};
+use magstand_ident::InputKind;
 use magstand_logs::export::json::export_json;
-use magstand_logs::export::per_motor::{describe_per_motor, per_motor_fit, per_motor_params};
+use magstand_logs::export::per_motor::{
+    describe_per_motor, per_motor_fit, per_motor_over_prediction, per_motor_params,
+};
 use magstand_logs::export::{
-    LineInput, Span, ardupilot_params, c_adaptive, c_header, describe, linear_approximation,
-    px4_params, rust_adaptive, rust_module,
+    LineInput, Span, ardupilot_params, c_adaptive, c_header, describe, line_over_prediction,
+    linear_approximation, px4_params, rust_adaptive, rust_module,
 };
 
 /// What to export to.
@@ -78,6 +80,74 @@ pub struct ExportArgs {
     forgetting: Option<f64>,
 }
 
+/// Writes `text` to --out, or to stdout.
+fn emit(a: &ExportArgs, text: &str) -> Result<()> {
+    match &a.out {
+        Some(path) => {
+            files::ensure_parent(path)?;
+            magstand_core::atomic_file::write_bytes(path, text.as_bytes())?;
+            eprintln!("wrote {}", path.display());
+        }
+        None => std::io::stdout().write_all(text.as_bytes())?,
+    }
+    Ok(())
+}
+
+/// The autopilots' forms of a physics model, fitted over a recording's rows: the physics
+/// predicts from the recording's commands through the stand's dynamics (spin-up, supply), so
+/// it has no form over one input to write as code, and no line without the rows it applies
+/// to.
+fn export_physics(a: &ExportArgs, model: &magstand_diagnose::AugmentedModel) -> Result<()> {
+    if a.forgetting.is_some() {
+        bail!("--forgetting sets the recursion of --to c-adaptive or rust-adaptive");
+    }
+    if !matches!(
+        a.target,
+        Target::Px4 | Target::Ardupilot | Target::ArdupilotPerMotor
+    ) {
+        bail!(
+            "{}: a physics model replays the recording's commands through the stand's dynamics (spin-up, supply); it has no form over one input for --to c, rust, json, c-adaptive or rust-adaptive. Export it as px4, ardupilot or ardupilot-per-motor over a recording, or fit a local linear model for code",
+            a.model.display()
+        );
+    }
+    let Some(path) = &a.recording else {
+        bail!(
+            "{}: a physics model predicts from a recording's commands: give --recording R.csv, the rows the line (or the per-motor set) is fitted over",
+            a.model.display()
+        );
+    };
+    let rec = recording_csv::read(path)?;
+    let origin = path.display().to_string();
+    let dist = model.dist_column(&rec, &origin)?;
+    let reference = model.reference_ut();
+    let input = match a.input {
+        Some(InputArg::Current) => LineInput::Current,
+        _ => LineInput::Throttle,
+    };
+    let text = match a.target {
+        Target::Px4 | Target::Ardupilot => {
+            let line = line_over_prediction(&dist, reference, &rec, &origin, input)?;
+            eprint!("{}", describe(&line));
+            if a.target == Target::Px4 {
+                px4_params(&line, a.instance.unwrap_or(0))
+            } else {
+                ardupilot_params(&line, a.instance.unwrap_or(1))
+            }
+        }
+        _ => {
+            if a.instance.is_some_and(|i| i != 1) {
+                bail!(
+                    "ArduPilot applies per-motor compensation to the first compass only; drop --instance or give 1"
+                );
+            }
+            let fit = per_motor_over_prediction(&dist, reference, &rec, &origin)?;
+            eprint!("{}", describe_per_motor(&fit));
+            per_motor_params(&fit)
+        }
+    };
+    emit(a, &text)
+}
+
 /// Runs `magstand export`.
 pub fn run(a: ExportArgs) -> Result<()> {
     if let Some(o) = &a.out {
@@ -85,7 +155,12 @@ pub fn run(a: ExportArgs) -> Result<()> {
         inputs.extend(a.recording.as_deref());
         files::refuse_overwriting_inputs(&inputs, &[o])?;
     }
-    let model = Model::load(&a.model)?;
+    let model = match magstand_diagnose::model_choice::DisturbanceModel::load(&a.model)? {
+        magstand_diagnose::model_choice::DisturbanceModel::LocalLinear(m) => *m,
+        magstand_diagnose::model_choice::DisturbanceModel::Physics(m) => {
+            return export_physics(&a, &m);
+        }
+    };
     let recording = a.recording.as_ref().map(recording_csv::read).transpose()?;
     let origin = a
         .recording
@@ -179,13 +254,5 @@ pub fn run(a: ExportArgs) -> Result<()> {
             export_json(&model, &line, per_motor.as_ref())?
         }
     };
-    match &a.out {
-        Some(path) => {
-            files::ensure_parent(path)?;
-            magstand_core::atomic_file::write_bytes(path, text.as_bytes())?;
-            eprintln!("wrote {}", path.display());
-        }
-        None => std::io::stdout().write_all(text.as_bytes())?,
-    }
-    Ok(())
+    emit(&a, &text)
 }

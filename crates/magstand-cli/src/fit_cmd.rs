@@ -545,7 +545,7 @@ pub fn run(a: FitArgs) -> Result<()> {
                 flight_reference,
             )?;
             match chosen {
-                magstand_diagnose::model_choice::ChosenModel::Physics(m) => {
+                magstand_diagnose::model_choice::DisturbanceModel::Physics(m) => {
                     m.save(&a.model_out).with_context(save_err)?;
                     if let Some(s) = earth_summary {
                         println!("{s}");
@@ -554,7 +554,7 @@ pub fn run(a: FitArgs) -> Result<()> {
                     println!("wrote {}", a.model_out.display());
                     return Ok(());
                 }
-                magstand_diagnose::model_choice::ChosenModel::LocalLinear(m) => {
+                magstand_diagnose::model_choice::DisturbanceModel::LocalLinear(m) => {
                     choice_to_print = Some(choice);
                     *m
                 }

@@ -81,9 +81,10 @@ pub fn identification_split(rec: &Recording) -> DiagnoseConfig {
     }
 }
 
-/// The model a choice kept.
+/// Every model `magstand compensate` takes: the one a choice kept, or one read from a file
+/// (the file's declared format says which).
 #[derive(Debug, Clone)]
-pub enum ChosenModel {
+pub enum DisturbanceModel {
     /// A local linear model (on throttle, current or each motor's command).
     LocalLinear(Box<Model>),
     /// The stand's physics.
@@ -118,7 +119,7 @@ pub fn choose_model(
     origin: &str,
     nominal: &ValidScenario,
     fallback_reference_ut: Option<Vec3>,
-) -> Result<(ChosenModel, FamilyChoice), DiagnoseError> {
+) -> Result<(DisturbanceModel, FamilyChoice), DiagnoseError> {
     let local = |input: InputKind| -> Result<(Model, Vec<Vec3>, Vec<bool>), DiagnoseError> {
         let cfg: ValidFitConfig = FitConfig::automatic().with_input(input).check()?;
         let data = Dataset::from_recording_or(rec, input, origin, fallback_reference_ut)?;
@@ -218,7 +219,7 @@ pub fn choose_model(
     })?;
     let with_choice = |mut m: Model| {
         m.choice = Some(choice.clone());
-        ChosenModel::LocalLinear(Box::new(m))
+        DisturbanceModel::LocalLinear(Box::new(m))
     };
     let chosen = match choice.chosen.as_str() {
         PHYSICS => {
@@ -229,7 +230,7 @@ pub fn choose_model(
                 })?
                 .model;
             m.choice = Some(choice.clone());
-            ChosenModel::Physics(Box::new(m))
+            DisturbanceModel::Physics(Box::new(m))
         }
         "automatic-current" => with_choice(current.map_err(unreachable_err(origin))?.0),
         "automatic-motors" => with_choice(motors.map_err(unreachable_err(origin))?.0),
@@ -247,34 +248,64 @@ fn unreachable_err(origin: &str) -> impl Fn(String) -> DiagnoseError + '_ {
     }
 }
 
-impl ChosenModel {
+impl DisturbanceModel {
+    /// Reads a model file of either format (`magstand-model` or `magstand-augmented-model`),
+    /// by the `format` it declares.
+    pub fn load(path: &std::path::Path) -> Result<Self, DiagnoseError> {
+        let text =
+            magstand_core::input_file::read_document(path).map_err(|source| DiagnoseError::Io {
+                path: path.to_path_buf(),
+                source,
+            })?;
+        let declared = serde_json::from_str::<serde_json::Value>(&text)
+            .ok()
+            .and_then(|v| v.get("format")?.as_str().map(String::from));
+        if declared.as_deref() == Some(crate::augmented_model::FORMAT) {
+            return Ok(DisturbanceModel::Physics(Box::new(
+                AugmentedModel::from_json(&text, path)?,
+            )));
+        }
+        Ok(DisturbanceModel::LocalLinear(Box::new(Model::from_json(
+            &text,
+            &path.display().to_string(),
+        )?)))
+    }
+
+    /// The motors-off field the model fitted, µT.
+    pub fn reference_ut(&self) -> Vec3 {
+        match self {
+            DisturbanceModel::LocalLinear(m) => Vec3::from(m.reference_ut),
+            DisturbanceModel::Physics(m) => m.reference_ut(),
+        }
+    }
+
     /// The family id.
     pub fn family(&self) -> &str {
         match self {
-            ChosenModel::LocalLinear(m) => m
+            DisturbanceModel::LocalLinear(m) => m
                 .choice
                 .as_ref()
                 .map_or(m.method.as_str(), |c| c.chosen.as_str()),
-            ChosenModel::Physics(_) => PHYSICS,
+            DisturbanceModel::Physics(_) => PHYSICS,
         }
     }
 
     /// Predicted disturbance at every row of `rec` (named `origin` in errors), µT.
     pub fn dist_column(&self, rec: &Recording, origin: &str) -> Result<Vec<Vec3>, DiagnoseError> {
         match self {
-            ChosenModel::LocalLinear(m) => {
+            DisturbanceModel::LocalLinear(m) => {
                 rec.check()?;
                 Ok(m.dist_column(rec))
             }
-            ChosenModel::Physics(m) => m.dist_column(rec, origin),
+            DisturbanceModel::Physics(m) => m.dist_column(rec, origin),
         }
     }
 
     /// Writes the model file, atomically.
     pub fn save(&self, path: &std::path::Path) -> Result<(), DiagnoseError> {
         match self {
-            ChosenModel::LocalLinear(m) => Ok(m.save(path)?),
-            ChosenModel::Physics(m) => m.save(path),
+            DisturbanceModel::LocalLinear(m) => Ok(m.save(path)?),
+            DisturbanceModel::Physics(m) => m.save(path),
         }
     }
 }

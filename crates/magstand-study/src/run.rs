@@ -196,8 +196,10 @@ fn physics_family(
     }
     let (chosen, _) = choose_model(ident, origin, &nominal, None).map_err(e)?;
     let reference = match &chosen {
-        magstand_diagnose::model_choice::ChosenModel::LocalLinear(m) => Vec3::from(m.reference_ut),
-        magstand_diagnose::model_choice::ChosenModel::Physics(m) => m.reference_ut(),
+        magstand_diagnose::model_choice::DisturbanceModel::LocalLinear(m) => {
+            Vec3::from(m.reference_ut)
+        }
+        magstand_diagnose::model_choice::DisturbanceModel::Physics(m) => m.reference_ut(),
     };
     Ok((chosen.dist_column(valid, name).map_err(e)?, reference))
 }

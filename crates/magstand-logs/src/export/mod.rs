@@ -117,8 +117,7 @@ pub(crate) struct Samples {
 
 /// Worst apparent heading error over samples on the model's motors-off field, for a correction
 /// that leaves `left(k)` of the disturbance at sample k.
-pub(crate) fn worst_heading_deg(model: &Model, n: usize, left: impl Fn(usize) -> Vec3) -> f64 {
-    let reference = Vec3::from(model.reference_ut);
+pub(crate) fn worst_heading_deg(reference: Vec3, n: usize, left: impl Fn(usize) -> Vec3) -> f64 {
     let h0 = heading_deg(reference, None);
     (0..n)
         .map(|k| heading_difference_deg(heading_deg(reference + left(k), None), h0).abs())
@@ -210,6 +209,39 @@ pub fn linear_approximation(
     span: Span,
 ) -> Result<LinearFit, LogsError> {
     let Samples { x, dist } = samples(model, input, span)?;
+    line_through(&x, &dist, Vec3::from(model.reference_ut), input)
+}
+
+/// The line through the origin of any model's predicted disturbance `dist_ut` at the rows of
+/// `rec` (named `origin`) along `input`: what [`linear_approximation`] does over a recording,
+/// for a model that predicts from the recording's commands (the stand's physics).
+/// `reference_ut` is the model's motors-off field, for the heading figures.
+pub fn line_over_prediction(
+    dist_ut: &[Vec3],
+    reference_ut: Vec3,
+    rec: &Recording,
+    origin: &str,
+    input: LineInput,
+) -> Result<LinearFit, LogsError> {
+    let x = match input {
+        LineInput::Throttle => rec.overall_throttle_column(),
+        LineInput::Current => rec.bat_a.clone().ok_or_else(|| {
+            LogsError::Export(format!(
+                "{origin}: a line per ampere needs the supply current, but the recording has no `bat_a` column"
+            ))
+        })?,
+    };
+    line_through(&x, dist_ut, reference_ut, input)
+}
+
+/// The least-squares line through the origin of `dist` against `x`, checked for the autopilots'
+/// range, with what it leaves.
+fn line_through(
+    x: &[f64],
+    dist: &[Vec3],
+    reference: Vec3,
+    input: LineInput,
+) -> Result<LinearFit, LogsError> {
     let n = x.len();
     let sxx: f64 = x.iter().map(|v| v * v).sum();
     let range_max = x.iter().copied().fold(f64::NEG_INFINITY, f64::max);
@@ -219,7 +251,7 @@ pub fn linear_approximation(
         )));
     }
     let slope: [f64; 3] =
-        std::array::from_fn(|a| x.iter().zip(&dist).map(|(v, d)| v * d[a]).sum::<f64>() / sxx);
+        std::array::from_fn(|a| x.iter().zip(dist).map(|(v, d)| v * d[a]).sum::<f64>() / sxx);
     // A firmware parameter is the worst place for a wrong number: the slope must be finite
     // and inside ArduPilot's documented COMPASS_MOT range (+-1000 mG per unit throttle or per
     // A; the same field per unit is PX4's +-1 G or +-1000 G/kA).
@@ -236,7 +268,7 @@ pub fn linear_approximation(
     let line = Vec3::from(slope);
     let rms_left_ut = std::array::from_fn(|a| {
         (x.iter()
-            .zip(&dist)
+            .zip(dist)
             .map(|(v, d)| (d[a] - slope[a] * v).powi(2))
             .sum::<f64>()
             / n as f64)
@@ -247,8 +279,8 @@ pub fn linear_approximation(
         range_max,
         slope,
         rms_left_ut,
-        worst_heading_deg: worst_heading_deg(model, n, |k| dist[k] - line * x[k]),
-        uncompensated_heading_deg: worst_heading_deg(model, n, |k| dist[k]),
+        worst_heading_deg: worst_heading_deg(reference, n, |k| dist[k] - line * x[k]),
+        uncompensated_heading_deg: worst_heading_deg(reference, n, |k| dist[k]),
     })
 }
 

@@ -100,6 +100,22 @@ pub fn per_motor_fit(
         .input
         .check_recording(rec, origin)
         .map_err(|e| LogsError::Export(e.to_string()))?;
+    per_motor_over_prediction(
+        &model.dist_column(rec),
+        Vec3::from(model.reference_ut),
+        rec,
+        origin,
+    )
+}
+
+/// ArduPilot's per-motor form fitted to any model's predicted disturbance `dist_ut` at the rows
+/// of `rec` (the stand's physics, say); `reference_ut` is the model's motors-off field.
+pub fn per_motor_over_prediction(
+    dist_ut: &[Vec3],
+    reference_ut: Vec3,
+    rec: &Recording,
+    origin: &str,
+) -> Result<PerMotorFit, LogsError> {
     let motors = rec.motor_count();
     if motors > MAX_MOTORS {
         return Err(LogsError::Export(format!(
@@ -111,7 +127,7 @@ pub fn per_motor_fit(
             "{origin}: ArduPilot's per-motor form scales each motor by the battery voltage, but the recording has no `bat_v` column"
         ))
     })?;
-    let dist = model.dist_column(rec);
+    let dist = dist_ut;
     let thr = &rec.thr;
     let refuse = |err: SolveError| match err {
         SolveError::NoData => LogsError::Export(format!("{origin}: no rows to fit")),
@@ -148,8 +164,8 @@ pub fn per_motor_fit(
         rms_left_ut: std::array::from_fn(|a| {
             (left.iter().map(|l| l[a] * l[a]).sum::<f64>() / n).sqrt()
         }),
-        worst_heading_deg: worst_heading_deg(model, left.len(), |k| left[k]),
-        uncompensated_heading_deg: worst_heading_deg(model, dist.len(), |k| dist[k]),
+        worst_heading_deg: worst_heading_deg(reference_ut, left.len(), |k| left[k]),
+        uncompensated_heading_deg: worst_heading_deg(reference_ut, dist.len(), |k| dist[k]),
     })
 }
 
