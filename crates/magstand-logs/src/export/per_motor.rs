@@ -139,7 +139,7 @@ pub fn per_motor_over_prediction(
     // An exponent near 0 flattens every running motor's regressor to about 1 and can make the
     // fit singular there alone: such exponents cost infinity rather than ending the search.
     let ssr = |e: f64| {
-        solve_at(thr, volts, &dist, e)
+        solve_at(thr, volts, dist, e)
             .map(|f| f.ssr())
             .unwrap_or(f64::INFINITY)
     };
@@ -154,7 +154,7 @@ pub fn per_motor_over_prediction(
         100,
         ssr,
     );
-    let AtExponent { theta, left } = solve_at(thr, volts, &dist, expo).map_err(refuse)?;
+    let AtExponent { theta, left } = solve_at(thr, volts, dist, expo).map_err(refuse)?;
     let n = rec.len().max(1) as f64;
     Ok(PerMotorFit {
         expo,
