@@ -85,6 +85,7 @@ fn every_figure_renders_with_size_and_content() {
         recording: &valid,
         recording_name: "validation".into(),
         model: Some(&model),
+        physics: None,
         diagnosis: Some(&diagnosis),
         study: None,
         provenance: vec![("test".into(), "report_in_chromium".into())],

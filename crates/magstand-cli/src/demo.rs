@@ -142,7 +142,7 @@ pub fn run(a: DemoArgs) -> Result<()> {
         &[],
         &valid,
         &valid_path.display().to_string(),
-        Some(&model),
+        Some(&magstand_diagnose::model_choice::DisturbanceModel::LocalLinear(Box::new(model))),
         Some(&diagnosis),
         None,
         prov,

@@ -8,7 +8,7 @@ use clap::Args;
 use crate::files;
 use magstand_core::{Recording, recording_csv};
 use magstand_diagnose::Diagnosis;
-use magstand_ident::Model;
+use magstand_diagnose::model_choice::DisturbanceModel;
 use magstand_report::{ReportInputs, build};
 use magstand_study::{StudyResult, Summary};
 
@@ -51,7 +51,7 @@ pub fn write_report(
     files_read: &[&Path],
     rec: &Recording,
     recording_name: &str,
-    model: Option<&Model>,
+    model: Option<&magstand_diagnose::model_choice::DisturbanceModel>,
     diagnosis: Option<&Diagnosis>,
     study_dir: Option<&Path>,
     mut provenance: Vec<(String, String)>,
@@ -69,7 +69,14 @@ pub fn write_report(
     let inputs = ReportInputs {
         recording: rec,
         recording_name: recording_name.into(),
-        model,
+        model: match model {
+            Some(DisturbanceModel::LocalLinear(m)) => Some(m),
+            _ => None,
+        },
+        physics: match model {
+            Some(DisturbanceModel::Physics(m)) => Some(m),
+            _ => None,
+        },
         diagnosis,
         study: study.as_ref().map(|(s, o)| (s, o.as_slice())),
         provenance,
@@ -93,12 +100,12 @@ pub fn run(a: ReportArgs) -> Result<()> {
         inputs.push(d);
     }
     let rec = recording_csv::read(&a.recording)?;
-    let model = a.model.as_deref().map(Model::load).transpose()?;
+    let model = a.model.as_deref().map(DisturbanceModel::load).transpose()?;
     let diagnosis = a.diagnosis.as_deref().map(Diagnosis::load).transpose()?;
     let mut prov = provenance();
     prov.push(("recording".into(), a.recording.display().to_string()));
     if let (Some(p), Some(m)) = (&a.model, &model) {
-        prov.push(("model".into(), format!("{} ({})", p.display(), m.method)));
+        prov.push(("model".into(), format!("{} ({})", p.display(), m.family())));
     }
     let page = write_report(
         &inputs,

@@ -114,6 +114,24 @@ fn a_physics_model_compensates_and_exports_over_a_recordings_rows() {
     ]);
     assert!(!r.ok && r.stderr.contains("--adapt"), "{}", r.stderr);
 
+    // The report judges it like any model: its compensation beside the autopilots' lines.
+    let r = magstand(&[
+        "report",
+        "--recording",
+        &valid,
+        "--model",
+        &model,
+        "--out",
+        &p("rep"),
+    ]);
+    assert!(r.ok, "{}", r.stderr);
+    let page = std::fs::read_to_string(p("rep/index.html")).unwrap();
+    assert!(
+        page.contains("stand&#39;s physics") || page.contains("stand's physics"),
+        "no physics section"
+    );
+    assert!(page.contains("this model (physics)"), "no compensation row");
+
     // The default fit prints its table and records it in the model file.
     let chosen = p("chosen.json");
     let r = magstand(&["fit", "--recording", &ident, "--model-out", &chosen]);

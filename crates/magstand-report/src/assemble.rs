@@ -16,6 +16,8 @@ pub struct ReportInputs<'a> {
     pub recording_name: String,
     /// The model to judge, if any.
     pub model: Option<&'a Model>,
+    /// A physics model (`magstand fit --method physics`) to judge, if any.
+    pub physics: Option<&'a magstand_diagnose::AugmentedModel>,
     /// A mismatch diagnosis of the recording, if any.
     pub diagnosis: Option<&'a magstand_diagnose::Diagnosis>,
     /// A Monte Carlo study's summary and rows, if any.
@@ -136,78 +138,31 @@ pub fn build(inputs: &ReportInputs) -> Result<Report, ReportError> {
         }
         report.sections.push(s);
 
-        let mut s = Section::new("Compensation");
-        let mut evals = vec![(
-            format!("this model ({})", model.method),
+        report.sections.push(compensation_section(
+            inputs,
+            &model.method,
             Evaluation::new(model, rec),
-        )];
-        // The autopilots' lines, fitted on this same recording: what a user of either gets today.
-        for id in ["px4", "ardupilot"] {
-            let m = methods::by_id(id).expect("catalog ids");
-            match m
-                .config
-                .clone()
-                .check()
-                .and_then(|c| c.fit_recording(rec, &inputs.recording_name))
-            {
-                Ok(line) => evals.push((
-                    format!("{} (fitted here)", m.label),
-                    Evaluation::new(&line, rec),
-                )),
-                Err(e) => s.text.push(format!(
-                    "{} could not be fitted on this recording: {e}",
-                    m.label
-                )),
-            }
-        }
-        s.figure(
-            "e20-vs-throttle",
-            "Mean error per throttle level after compensation, in % of the field norm (eq. 20, the paper's Fig. 8).",
-            figures::e20_against_throttle(&evals[0].0, &evals[0].1)?,
-        );
-        s.figure(
-            "heading-vs-throttle",
-            "Apparent heading error of each level's mean field, before and after compensation, beside the straight-line fits the autopilots use.",
-            figures::heading_against_throttle(&evals)?,
-        );
-        let mut head = [
-            "method",
-            "worst heading error (°)",
-            "interference (% of field)",
-            "eq. 20 RMS (%)",
-        ]
-        .map(String::from)
-        .to_vec();
-        if rec.truth.is_some() {
-            head.push("RMSE against true disturbance (µT)".into());
-        }
-        let mut rows = vec![{
-            let e = &evals[0].1;
-            let mut r = vec![
-                "no compensation".to_string(),
-                f3(e.heading_before_max_deg),
-                f3(e.interference_before_pct),
-                "-".into(),
-            ];
-            if let Some(d) = e.truth_rms_dist_ut {
-                r.push(f3(Vec3::from(d).norm()));
-            }
-            r
-        }];
-        for (label, e) in &evals {
-            let mut r = vec![
-                label.clone(),
-                f3(e.heading_after_max_deg),
-                f3(e.interference_after_pct),
-                f3(Vec3::from(e.e20_rms_pct).norm()),
-            ];
-            if let Some(t) = e.truth_rmse_ut {
-                r.push(f3(Vec3::from(t).norm()));
-            }
-            rows.push(r);
-        }
-        s.tables.push((head, rows));
+        )?);
+    }
+
+    if let Some(physics) = inputs.physics {
+        let mut s = Section::new("The model");
+        let effects: Vec<&str> = physics.effects.iter().map(|e| e.name.as_str()).collect();
+        s.text.push(format!(
+            "The stand's physics, calibrated: the recording's commands replayed through the nominal stand{}, with {} fitted numbers (wiring gains on the motor currents, a cubic in rotor speed for the current law, the motors-off field and the command timing).",
+            if effects.is_empty() {
+                String::new()
+            } else {
+                format!(" with {}", effects.join(", "))
+            },
+            physics.parameter_count()
+        ));
         report.sections.push(s);
+        let dist = physics.dist_column(rec, &inputs.recording_name)?;
+        let ev = Evaluation::from_prediction_at(physics.reference_ut(), rec, &dist);
+        report
+            .sections
+            .push(compensation_section(inputs, "physics", ev)?);
     }
 
     if let Some(d) = inputs.diagnosis {
@@ -268,4 +223,83 @@ pub fn build(inputs: &ReportInputs) -> Result<Report, ReportError> {
         report.sections.push(s);
     }
     Ok(report)
+}
+
+/// The compensation by `label`'s model (judged as `this`) beside the autopilots' lines
+/// fitted on the same recording.
+fn compensation_section(
+    inputs: &ReportInputs,
+    label: &str,
+    this: Evaluation,
+) -> Result<Section, ReportError> {
+    let rec = inputs.recording;
+    let mut s = Section::new("Compensation");
+    let mut evals = vec![(format!("this model ({label})"), this)];
+    // The autopilots' lines, fitted on this same recording: what a user of either gets today.
+    for id in ["px4", "ardupilot"] {
+        let m = methods::by_id(id).expect("catalog ids");
+        match m
+            .config
+            .clone()
+            .check()
+            .and_then(|c| c.fit_recording(rec, &inputs.recording_name))
+        {
+            Ok(line) => evals.push((
+                format!("{} (fitted here)", m.label),
+                Evaluation::new(&line, rec),
+            )),
+            Err(e) => s.text.push(format!(
+                "{} could not be fitted on this recording: {e}",
+                m.label
+            )),
+        }
+    }
+    s.figure(
+            "e20-vs-throttle",
+            "Mean error per throttle level after compensation, in % of the field norm (eq. 20, the paper's Fig. 8).",
+            figures::e20_against_throttle(&evals[0].0, &evals[0].1)?,
+        );
+    s.figure(
+            "heading-vs-throttle",
+            "Apparent heading error of each level's mean field, before and after compensation, beside the straight-line fits the autopilots use.",
+            figures::heading_against_throttle(&evals)?,
+        );
+    let mut head = [
+        "method",
+        "worst heading error (°)",
+        "interference (% of field)",
+        "eq. 20 RMS (%)",
+    ]
+    .map(String::from)
+    .to_vec();
+    if rec.truth.is_some() {
+        head.push("RMSE against true disturbance (µT)".into());
+    }
+    let mut rows = vec![{
+        let e = &evals[0].1;
+        let mut r = vec![
+            "no compensation".to_string(),
+            f3(e.heading_before_max_deg),
+            f3(e.interference_before_pct),
+            "-".into(),
+        ];
+        if let Some(d) = e.truth_rms_dist_ut {
+            r.push(f3(Vec3::from(d).norm()));
+        }
+        r
+    }];
+    for (label, e) in &evals {
+        let mut r = vec![
+            label.clone(),
+            f3(e.heading_after_max_deg),
+            f3(e.interference_after_pct),
+            f3(Vec3::from(e.e20_rms_pct).norm()),
+        ];
+        if let Some(t) = e.truth_rmse_ut {
+            r.push(f3(Vec3::from(t).norm()));
+        }
+        rows.push(r);
+    }
+    s.tables.push((head, rows));
+    Ok(s)
 }

@@ -23,6 +23,9 @@ pub enum ReportError {
     /// An output file could not be written.
     #[error(transparent)]
     Output(#[from] magstand_core::CoreError),
+    /// A physics model cannot predict this recording.
+    #[error(transparent)]
+    Model(#[from] magstand_diagnose::DiagnoseError),
     /// An input file could not be read.
     #[error("{path}: {source}")]
     Io {
