@@ -305,9 +305,13 @@ impl ValidFitConfig {
                     max_models,
                     estimation,
                 } => {
-                    // Choose on the fitting rows only: fit on some, score on others.
-                    let fit_part = |k: usize| rows(k) && !select(k);
-                    let score_part = |k: usize| rows(k) && select(k);
+                    // Choose on the fitting rows only: fit on some, score on others. A long
+                    // recording chooses on every `stride`-th of them: the choice needs rows
+                    // in every input bin, not all of them, and the coefficients are then
+                    // fitted on every row.
+                    let stride = data.len().div_ceil(structure::MAX_CHOICE_ROWS).max(1);
+                    let fit_part = |k: usize| k % stride == 0 && rows(k) && !select(k);
+                    let score_part = |k: usize| k % stride == 0 && rows(k) && select(k);
                     (
                         structure::choose(
                             data,

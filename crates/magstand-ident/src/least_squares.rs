@@ -72,6 +72,31 @@ impl NormalEquations {
         self.rows += 1;
     }
 
+    /// Adds one row whose regressors are zero except `vals` at the columns `cols` (ascending):
+    /// the same sums as [`NormalEquations::add`] of the full row, at the cost of the nonzero
+    /// part only.
+    #[inline]
+    pub fn add_sparse(&mut self, cols: &[usize], vals: &[f64], y: &[f64], w: f64) {
+        if w <= 0.0 {
+            return;
+        }
+        debug_assert!(cols.windows(2).all(|c| c[0] < c[1]), "ascending columns");
+        for (a, &i) in cols.iter().enumerate() {
+            let wxi = w * vals[a];
+            if wxi == 0.0 {
+                continue;
+            }
+            for (b, &j) in cols.iter().enumerate().skip(a) {
+                self.xtx[(i, j)] += wxi * vals[b];
+            }
+            for (k, yk) in y.iter().enumerate() {
+                self.xty[(i, k)] += wxi * yk;
+            }
+        }
+        self.weight_sum += w;
+        self.rows += 1;
+    }
+
     /// Adds another accumulator's sums (for parallel or chunked accumulation).
     pub fn merge(&mut self, other: &NormalEquations) {
         self.xtx += &other.xtx;

@@ -76,6 +76,9 @@ pub(crate) fn singular(data: &Dataset, what: &str, e: SolveError) -> IdentError 
     }
 }
 
+/// Smallest normalized membership with which a row enters a local model's global fit.
+pub const MIN_MEMBERSHIP: f64 = 1e-12;
+
 /// Fits the network on the rows where `use_row` is true, weighting row `k` on axis `a` by
 /// `weight(k)[a]`.
 pub fn fit(
@@ -119,20 +122,27 @@ pub fn fit(
         Estimation::Global => {
             let mut ne: [NormalEquations; 3] =
                 std::array::from_fn(|_| NormalEquations::new(m * p, 1));
-            let mut z = vec![0.0; m * p];
+            // Only the local models a row belongs to carry its regressors: a normalized
+            // Gaussian membership below MIN_MEMBERSHIP adds less than a part in 1e12 of what
+            // the model's own rows add, and skipping it makes a row cost the few models near
+            // it rather than all of them.
+            let (mut cols, mut z) = (Vec::with_capacity(m * p), Vec::with_capacity(m * p));
             for k in 0..data.len() {
                 if !use_row(k) {
                     continue;
                 }
                 partition.weights_into(data.u[k], &mut phi);
                 let (x, y, w) = (data.regressors(k), data.y[k], weight(k));
-                for i in 0..m {
+                cols.clear();
+                z.clear();
+                for i in (0..m).filter(|&i| phi[i] >= MIN_MEMBERSHIP) {
                     for j in 0..p {
-                        z[i * p + j] = phi[i] * x[j];
+                        cols.push(i * p + j);
+                        z.push(phi[i] * x[j]);
                     }
                 }
                 for a in 0..3 {
-                    ne[a].add(&z, &[y[a]], w[a]);
+                    ne[a].add_sparse(&cols, &z, &[y[a]], w[a]);
                 }
             }
             let mut out: [Vec<Vec<f64>>; 3] = Default::default();

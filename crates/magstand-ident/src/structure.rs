@@ -31,6 +31,11 @@ pub fn partition_of(intervals: &[(f64, f64)]) -> RbfPartition {
     RbfPartition::new(centers, widths).expect("intervals of positive width give a valid partition")
 }
 
+/// Most rows the structure is chosen on: a longer recording chooses on rows evenly spread over
+/// it (every k-th), 1,000 per input bin, and fits the chosen structure's coefficients on
+/// every row. (The choice scans the data once per candidate split, about 20 times per fit.)
+pub const MAX_CHOICE_ROWS: usize = 50_000;
+
 /// Number of input bins over which residuals are averaged.
 pub const BINS: usize = 50;
 

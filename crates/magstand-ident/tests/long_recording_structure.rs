@@ -1,0 +1,59 @@
+//! A recording longer than `structure::MAX_CHOICE_ROWS` chooses its local models on rows
+//! spread over it and fits their coefficients on every row: the automatic fit of such a
+//! recording must still follow a known nonlinear disturbance.
+use magstand_core::{Recording, Vec3};
+use magstand_ident::structure::MAX_CHOICE_ROWS;
+use magstand_ident::{Dataset, Fit, FitConfig, InputKind};
+
+fn truth(u: f64) -> Vec3 {
+    Vec3::new(
+        3.0 * u + 8.0 * u.powi(3),
+        -2.0 * u * u,
+        5.0 * (2.0 * u).sin(),
+    )
+}
+
+fn recording(n: usize) -> Recording {
+    let mut state = 0x2545_f491_4f6c_dd1du64;
+    let mut next = || {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        (state >> 11) as f64 / (1u64 << 53) as f64
+    };
+    let mut rec = Recording::default();
+    let mut level = 0.0;
+    for r in 0..n {
+        // A new level every 200 rows, one in six with the motors off.
+        if r % 200 == 0 {
+            level = if next() < 1.0 / 6.0 {
+                0.0
+            } else {
+                0.1 + 0.9 * next()
+            };
+        }
+        let noise = Vec3::new(next() - 0.5, next() - 0.5, next() - 0.5) * 0.3;
+        rec.t_s.push(r as f64 * 0.01);
+        rec.mag_ut
+            .push(Vec3::new(20.0, 1.0, 45.0) + truth(level) + noise);
+        rec.thr.push(vec![level]);
+    }
+    // thr[motor][row]
+    rec.thr = vec![rec.thr.iter().map(|v| v[0]).collect()];
+    rec.overall_only = true;
+    rec
+}
+
+#[test]
+fn a_long_recording_still_follows_a_nonlinear_disturbance() {
+    let n = 3 * MAX_CHOICE_ROWS;
+    let rec = recording(n);
+    let data = Dataset::from_recording(&rec, InputKind::Throttle, "long").unwrap();
+    let model = FitConfig::automatic().check().unwrap().fit(&data).unwrap();
+    let mut s = model.scratch();
+    let worst = (0..=40)
+        .map(|i| 0.1 + 0.9 * i as f64 / 40.0)
+        .map(|u| (model.dist_at_input(u, &mut s) - truth(u)).norm())
+        .fold(0.0, f64::max);
+    assert!(worst < 0.05, "worst error {worst} µT over the levels");
+}
