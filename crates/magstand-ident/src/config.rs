@@ -310,8 +310,8 @@ impl ValidFitConfig {
                     // in every input bin, not all of them, and the coefficients are then
                     // fitted on every row.
                     let stride = data.len().div_ceil(structure::MAX_CHOICE_ROWS).max(1);
-                    let fit_part = |k: usize| k % stride == 0 && rows(k) && !select(k);
-                    let score_part = |k: usize| k % stride == 0 && rows(k) && select(k);
+                    let fit_part = |k: usize| k.is_multiple_of(stride) && rows(k) && !select(k);
+                    let score_part = |k: usize| k.is_multiple_of(stride) && rows(k) && select(k);
                     (
                         structure::choose(
                             data,
