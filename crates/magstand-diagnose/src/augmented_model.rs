@@ -19,6 +19,7 @@
 //!     "full_load_a": 48.0
 //!   },
 //!   "method": "physics",                  // optional: written by `magstand fit`
+//!   "follow_recorded_voltage": true,      // optional: the replay follows the logged bat_v
 //!   "choice": {...}                       // optional: `fit`'s automatic choice, as in the
 //!                                         // local linear model file
 //! }
@@ -97,6 +98,10 @@ pub struct AugmentedModel {
     /// When `fit` chose the family automatically: what was tried and why this one won.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub choice: Option<magstand_ident::family_choice::FamilyChoice>,
+    /// Whether the replay follows the recording's logged supply voltage (`bat_v`): a
+    /// recording to compensate then needs that column. Absent (false) in older files.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub follow_recorded_voltage: bool,
 }
 
 /// Largest noise-law coefficient or floor a model file may carry, µT² ((1e5 µT)²).
@@ -288,6 +293,11 @@ impl AugmentedModel {
                 rec.motor_count()
             )));
         }
+        if self.follow_recorded_voltage && rec.bat_v.is_none() {
+            return Err(bad(
+                "the model replays the logged supply voltage, and this recording has no `bat_v` column: expected one (the model was fitted on a recording that had it)".into(),
+            ));
+        }
         let effects: Vec<Box<dyn Effect>> = catalog();
         let mut terms: Vec<(&dyn Effect, &[f64])> = Vec::new();
         for t in &self.effects {
@@ -307,6 +317,7 @@ impl AugmentedModel {
             rec_origin: origin.into(),
             command_lead: self.command_lead,
             flight: false,
+            follow_recorded_voltage: self.follow_recorded_voltage,
         };
         // Each effect's parameters as its own search defines them: as many as it searches,
         // finite, positive where it searches on a log scale, and within ten times its range.

@@ -4,8 +4,8 @@
 //! # The physics model
 //!
 //! [`fit_physics`] is the diagnosis's calibration, kept as a model: the recording's own
-//! commands replayed through the nominal stand (dead zone, spin-up, supply with `bat_v`
-//! where logged, current law), with every constant the scenario leaves out calibrated, the
+//! commands replayed through the nominal stand (dead zone, spin-up, the logged supply voltage
+//! `bat_v` where there is one, else the stated or default supply, current law), with every constant the scenario leaves out calibrated, the
 //! wiring gains, the current-law cubic and the motors-off field fitted by least squares, and
 //! any effect the data demand switched on (the diagnosis's forward search: only terms that
 //! replicate). It is the same code as `magstand diagnose`, not a copy: the model is the
@@ -30,7 +30,7 @@ use magstand_sim::ValidScenario;
 
 use crate::augmented_model::AugmentedModel;
 use crate::diagnosis::Diagnosis;
-use crate::{DiagnoseConfig, DiagnoseError, diagnose};
+use crate::{DiagnoseConfig, DiagnoseError};
 
 /// Family id of the physics model.
 pub const PHYSICS: &str = "physics";
@@ -57,7 +57,7 @@ pub fn fit_physics(
     nominal: &ValidScenario,
     config: &crate::ValidConfig,
 ) -> Result<PhysicsFit, DiagnoseError> {
-    let diagnosis = diagnose(rec, origin, nominal, config)?;
+    let diagnosis = crate::pipeline::diagnose_with(rec, origin, nominal, config, true)?;
     let mut model = diagnosis
         .model
         .clone()

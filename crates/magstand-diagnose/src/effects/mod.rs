@@ -45,6 +45,10 @@ pub struct Context<'a> {
     /// Whether the recording is a flight, whose Earth field, offset and magnetometer delay
     /// the baseline already took out.
     pub flight: bool,
+    /// Whether the replay follows the recording's logged supply voltage (`bat_v`) from the
+    /// start, as the physics model does; the diagnosis instead names the battery's sag as an
+    /// effect when the data demand it.
+    pub follow_recorded_voltage: bool,
 }
 
 /// A fitted parameter with its unit and standard uncertainty.

@@ -175,6 +175,7 @@ fn model_file(
         noise: Some(m.noise.to_noise(m.built.full_load_a)),
         method: None,
         choice: None,
+        follow_recorded_voltage: ctx.follow_recorded_voltage,
     }
 }
 

@@ -43,7 +43,7 @@ pub(crate) fn build(ctx: &Context, terms: &[(&dyn Effect, &[f64])]) -> Built {
 /// The design of `terms` with command changes taking effect at `lead` of each interval.
 pub(crate) fn build_with_lead(ctx: &Context, terms: &[(&dyn Effect, &[f64])], lead: f64) -> Built {
     let mut s = ctx.nominal.clone();
-    let mut recorded_v = false;
+    let mut recorded_v = ctx.follow_recorded_voltage;
     for (e, theta) in terms {
         e.apply(ctx, &mut s, theta);
         recorded_v |= e.uses_recorded_voltage(ctx);

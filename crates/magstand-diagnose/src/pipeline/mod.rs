@@ -45,6 +45,18 @@ pub fn diagnose(
     nominal: &ValidScenario,
     config: &ValidConfig,
 ) -> Result<Diagnosis, DiagnoseError> {
+    diagnose_with(rec, origin, nominal, config, false)
+}
+
+/// [`diagnose`], with the replay following the logged supply voltage from the start when
+/// `follow_recorded_voltage` and the recording has `bat_v` (the physics model's baseline).
+pub(crate) fn diagnose_with(
+    rec: &Recording,
+    origin: &str,
+    nominal: &ValidScenario,
+    config: &ValidConfig,
+    follow_recorded_voltage: bool,
+) -> Result<Diagnosis, DiagnoseError> {
     let cfg = config.params();
     let flight = flight::flight_baseline(rec, origin)?;
     let rec = flight.as_ref().map_or(rec, |f| &f.recording);
@@ -69,6 +81,7 @@ pub fn diagnose(
         rec_origin: origin.to_string(),
         command_lead: 0.5,
         flight: flight.is_some(),
+        follow_recorded_voltage: follow_recorded_voltage && rec.bat_v.is_some(),
     };
     let base = calibrate_baseline(&mut ctx, cfg)?;
     let rows = Rows::new(rec, &split.block);
