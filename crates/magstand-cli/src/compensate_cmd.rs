@@ -1,12 +1,13 @@
 //! `magstand compensate`.
 use std::path::PathBuf;
 
-use anyhow::{Context, Result};
+use anyhow::Result;
 use clap::Args;
 
 use crate::files;
 use magstand_core::{Recording, Vec3, recording_csv};
 use magstand_ident::metrics::{Evaluation, against_truth};
+use magstand_diagnose::model_choice::DisturbanceModel;
 use magstand_ident::{Model, flight};
 
 /// Arguments of `magstand compensate`.
@@ -36,12 +37,6 @@ pub struct CompensateArgs {
     forgetting: f64,
 }
 
-/// The `format` a model file's text declares, if it is JSON with one.
-fn declared_format(text: &str) -> Option<String> {
-    let v: serde_json::Value = serde_json::from_str(text).ok()?;
-    v.get("format")?.as_str().map(String::from)
-}
-
 /// Prints the RMSE against ground truth of a simulated recording.
 fn print_truth(rmse_ut: Option<[f64; 3]>) {
     if let Some(e) = rmse_ut {
@@ -53,8 +48,7 @@ fn print_truth(rmse_ut: Option<[f64; 3]>) {
 }
 
 /// Compensates with an augmented model from `magstand diagnose`.
-fn run_augmented(a: &CompensateArgs, model_text: &str) -> Result<()> {
-    let model = magstand_diagnose::AugmentedModel::from_json(model_text, &a.model)?;
+fn run_augmented(a: &CompensateArgs, model: &magstand_diagnose::AugmentedModel) -> Result<()> {
     let rec = recording_csv::read(&a.recording)?;
     let origin = a.recording.display().to_string();
     let out = model.compensate(&rec, &origin)?;
@@ -148,19 +142,19 @@ fn warn_beyond_identified(model: &Model, rec: &Recording, origin: &str) {
 /// Runs `magstand compensate`.
 pub fn run(a: CompensateArgs) -> Result<()> {
     files::refuse_overwriting_inputs(&[&a.model, &a.recording], &[&a.out])?;
-    // Read once: the declared format picks the reader.
-    let text = magstand_core::input_file::read_document(&a.model)
-        .with_context(|| format!("reading the model {}", a.model.display()))?;
-    if declared_format(&text).as_deref() == Some(magstand_diagnose::augmented_model::FORMAT) {
-        if a.adapt {
-            anyhow::bail!(
-                "{}: --adapt updates a local linear model's coefficients; this is a physics (augmented) model",
-                a.model.display()
-            );
+    // The library reads either format by the one the file declares.
+    let model = match DisturbanceModel::load(&a.model)? {
+        DisturbanceModel::Physics(m) => {
+            if a.adapt {
+                anyhow::bail!(
+                    "{}: --adapt updates a local linear model's coefficients; this is a physics (augmented) model",
+                    a.model.display()
+                );
+            }
+            return run_augmented(&a, &m);
         }
-        return run_augmented(&a, &text);
-    }
-    let model = Model::from_json(&text, &a.model.display().to_string())?;
+        DisturbanceModel::LocalLinear(m) => *m,
+    };
     let origin = a.recording.display().to_string();
     if a.adapt {
         return run_adaptive(&a, &model, &origin);
