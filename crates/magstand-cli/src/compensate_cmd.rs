@@ -6,8 +6,8 @@ use clap::Args;
 
 use crate::files;
 use magstand_core::{Recording, Vec3, recording_csv};
-use magstand_ident::metrics::{Evaluation, against_truth};
 use magstand_diagnose::model_choice::DisturbanceModel;
+use magstand_ident::metrics::{Evaluation, against_truth};
 use magstand_ident::{Model, flight};
 
 /// Arguments of `magstand compensate`.

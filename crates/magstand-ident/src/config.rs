@@ -252,8 +252,11 @@ impl ValidFitConfig {
         )?)
     }
 
+    /// The method's name in the model file: one spelling, the one `runs.csv`, the studies
+    /// and `--methods` use where they name the same thing (see [`crate::model::method_name`]).
     fn method_name(&self) -> String {
-        let w = if self.0.weighted { "+weighted" } else { "" };
+        let weighted = self.0.weighted;
+        let w = if weighted { "-weighted" } else { "" };
         match &self.0.family {
             Family::LocalLinear {
                 estimation: Estimation::Local,
@@ -264,12 +267,13 @@ impl ValidFitConfig {
                 ..
             } => format!("global{w}"),
             Family::Automatic { estimation, .. } => format!(
-                "auto-{}{w}",
+                "automatic{}{}",
                 if *estimation == Estimation::Local {
-                    "local"
+                    "-local"
                 } else {
-                    "global"
-                }
+                    ""
+                },
+                if weighted { "" } else { "-unweighted" }
             ),
             Family::ArduPilot => "ardupilot".into(),
             Family::Px4 => "px4".into(),

@@ -67,4 +67,6 @@ pub use dataset::{
 };
 pub use error::{FitSetting, IdentError};
 pub use local_linear::{Estimation, LocalLinearNet};
-pub use model::{FORMAT, FitSummary, IdentifiedRange, Model, Scratch, Structure, VERSION};
+pub use model::{
+    FORMAT, FitSummary, IdentifiedRange, Model, Scratch, Structure, VERSION, method_name,
+};

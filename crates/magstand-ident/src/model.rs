@@ -5,7 +5,7 @@
 //! ```text
 //! {
 //!   "format": "magstand-model", "version": 1,
-//!   "method": "global+weighted",          // how it was fitted (informational)
+//!   "method": "global-weighted",          // how it was fitted (informational; see method_name)
 //!   "input": {"kind": "throttle"|"motors"|"current", "lo": 0, "hi": 1, "motors": 4, "off_raw": 0},
 //!   "reference_ut": [x, y, z],            // eq. 9 motors-off reading of the identification data
 //!   "structure": {"kind": "local_linear", "partition": {"centers": [...], "widths": [...]},
@@ -169,6 +169,22 @@ impl IdentifiedRange {
 pub struct Scratch {
     x: Vec<f64>,
     phi: Vec<f64>,
+}
+
+/// The one spelling of a model file's `method`: files written before the names were unified
+/// spelled weighting with `+` and the automatic structure `auto-...`
+/// (`global+weighted`, `auto-global+weighted`); they read as `global-weighted` and
+/// `automatic`, the names `runs.csv` and `--methods` use. Other names pass unchanged.
+pub fn method_name(written: &str) -> &str {
+    match written {
+        "local+weighted" => "local-weighted",
+        "global+weighted" => "global-weighted",
+        "auto-global+weighted" => "automatic",
+        "auto-global" => "automatic-unweighted",
+        "auto-local+weighted" => "automatic-local",
+        "auto-local" => "automatic-local-unweighted",
+        other => other,
+    }
 }
 
 impl Model {
@@ -408,9 +424,10 @@ impl Model {
                 )));
             }
         }
-        let m: Model =
+        let mut m: Model =
             serde_json::from_value(v).map_err(|e| err(format!("malformed model: {e}")))?;
         m.validate().map_err(err)?;
+        m.method = method_name(&m.method).to_string();
         Ok(m)
     }
 

@@ -8,6 +8,7 @@
 use magstand_ident::adaptive::{ValidAdaptConfig, growth, start_variance};
 use magstand_ident::{InputKind, Model, Structure};
 
+use super::firmware::list;
 use crate::LogsError;
 
 /// What both forms are generated from.
@@ -79,14 +80,6 @@ impl Parts {
         }
         Ok(parts)
     }
-}
-
-fn list(values: impl IntoIterator<Item = f64>) -> String {
-    values
-        .into_iter()
-        .map(|v| format!("{v:e}"))
-        .collect::<Vec<_>>()
-        .join(", ")
 }
 
 /// The recursion as a C99 header (`math.h` only): `magstand_adapt_init(&state)` once, then

@@ -88,7 +88,7 @@ impl Parts {
 }
 
 /// Numbers in a form both C and Rust read back to the same double (shortest round trip).
-fn list(values: impl IntoIterator<Item = f64>) -> String {
+pub(crate) fn list(values: impl IntoIterator<Item = f64>) -> String {
     values
         .into_iter()
         .map(|v| format!("{v:e}"))
