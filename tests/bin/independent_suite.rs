@@ -1,13 +1,18 @@
 //! Runs the diagnosis and fit suite on recordings from the independent stand generator and
 //! prints its Markdown report:
 //! `cargo run --release -p magstand-tests --bin independent-suite -- [SEEDS [LABEL]]`
-//! (default 2 seeds, every case, both modes; LABEL keeps the cases whose label contains it;
-//! FIRST_SEED in the environment starts elsewhere).
+//! (default 2 seeds, every case, both modes; LABEL keeps the cases whose label contains it,
+//! and LABEL `fit` runs only the fit comparison; FIRST_SEED in the environment starts
+//! elsewhere).
 use magstand_tests::SuiteArgs;
 use magstand_tests::independent::{Mode, cases, fit_accuracy, markdown, run_case};
 
 fn main() {
     let SuiteArgs { seeds, only } = SuiteArgs::from_env(2);
+    if only == "fit" {
+        print_fit_accuracy();
+        return;
+    }
     let mut outcomes = Vec::new();
     for case in cases().into_iter().filter(|c| c.label.contains(&only)) {
         for mode in [Mode::Unstated, Mode::Stated] {
@@ -23,12 +28,16 @@ fn main() {
     }
     print!("{}", markdown(&outcomes));
     if only.is_empty() {
-        println!(
-            "\n### Fit on independent data (identified on seed 101, judged on seed 102 against the generator's truth)\n"
-        );
-        println!("| method | RMSE x, y, z (µT) |\n|---|---|");
-        for (name, r) in fit_accuracy(101, 102) {
-            println!("| {name} | {:.3}, {:.3}, {:.3} |", r[0], r[1], r[2]);
-        }
+        print_fit_accuracy();
+    }
+}
+
+fn print_fit_accuracy() {
+    println!(
+        "\n### Fit on independent data (identified on seed 101, judged on seed 102 against the generator's truth)\n"
+    );
+    println!("| method | RMSE x, y, z (µT) |\n|---|---|");
+    for (name, r) in fit_accuracy(101, 102) {
+        println!("| {name} | {:.3}, {:.3}, {:.3} |", r[0], r[1], r[2]);
     }
 }

@@ -269,7 +269,7 @@ pub fn fit_accuracy(ident: u64, valid: u64) -> Vec<(String, [f64; 3])> {
     let mut out = Vec::new();
     for (name, input, config) in [
         (
-            "fit default (automatic, throttle)",
+            "fit --method local-linear (automatic, throttle)",
             InputKind::Throttle,
             FitConfig::automatic(),
         ),
@@ -290,6 +290,29 @@ pub fn fit_accuracy(ident: u64, valid: u64) -> Vec<(String, [f64; 3])> {
             name.to_string(),
             rmse_ut(&model.dist_column(&va_rec), &truth),
         ));
+    }
+    // `fit` with no options: the family chosen by held-out error; and `fit --method physics`.
+    let nominal_unstated = nominal(Mode::Unstated);
+    if let Ok((chosen, choice)) = magstand_diagnose::model_choice::choose_model(
+        &id_rec,
+        "ident",
+        &nominal_unstated,
+        None,
+    ) && let Ok(dist) = chosen.dist_column(&va_rec, "valid")
+    {
+        out.push((
+            format!("fit default (family chosen: {})", choice.chosen),
+            rmse_ut(&dist, &truth),
+        ));
+    }
+    let split = magstand_diagnose::model_choice::identification_split(&id_rec)
+        .check()
+        .unwrap();
+    if let Ok(p) =
+        magstand_diagnose::model_choice::fit_physics(&id_rec, "ident", &nominal_unstated, &split)
+        && let Ok(dist) = p.model.dist_column(&va_rec, "valid")
+    {
+        out.push(("fit --method physics".to_string(), rmse_ut(&dist, &truth)));
     }
     // The diagnosis's augmented model (calibrated stand physics), as `diagnose --model-out`.
     for mode in [Mode::Unstated, Mode::Stated] {
