@@ -11,7 +11,10 @@
 //! * inputs beyond the overall throttle ([`InputKind`]): per-motor commands, supply current;
 //! * the autopilots' straight lines for comparison ([`baseline`]);
 //! * metrics ([`metrics`]): eq. 9, eq. 20, heading error, interference; and the autopilots'
-//!   own figures beside a model's ([`compatibility`]).
+//!   own figures beside a model's ([`compatibility`]);
+//! * the rule that chooses among model families by held-out error ([`family_choice`]);
+//! * recursive estimation, the paper's future work ([`adaptive`]): the coefficients updated
+//!   row by row while compensating, with a forgetting factor.
 //!
 //! Settings are checked before fitting: a [`FitConfig`] becomes a [`ValidFitConfig`], which
 //! implements [`Fit`]. The resulting [`Model`] implements [`Predict`] and compensates.
