@@ -293,12 +293,9 @@ pub fn fit_accuracy(ident: u64, valid: u64) -> Vec<(String, [f64; 3])> {
     }
     // `fit` with no options: the family chosen by held-out error; and `fit --method physics`.
     let nominal_unstated = nominal(Mode::Unstated);
-    if let Ok((chosen, choice)) = magstand_diagnose::model_choice::choose_model(
-        &id_rec,
-        "ident",
-        &nominal_unstated,
-        None,
-    ) && let Ok(dist) = chosen.dist_column(&va_rec, "valid")
+    if let Ok((chosen, choice)) =
+        magstand_diagnose::model_choice::choose_model(&id_rec, "ident", &nominal_unstated, None)
+        && let Ok(dist) = chosen.dist_column(&va_rec, "valid")
     {
         out.push((
             format!("fit default (family chosen: {})", choice.chosen),
