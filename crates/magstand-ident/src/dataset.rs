@@ -157,6 +157,17 @@ pub fn motors_off_reference(rec: &Recording, off_rows: &[usize]) -> Option<Vec3>
         .then(|| off_rows.iter().map(|&r| rec.mag_ut[r]).sum::<Vec3>() / off_rows.len() as f64)
 }
 
+/// The identification split's time block of each of the times `t_s` (ascending, not empty):
+/// blocks of 1 s, or shorter so that the span holds at least 50 of them.
+pub fn time_blocks_of(t_s: &[f64]) -> Vec<u64> {
+    let t0 = t_s[0];
+    let span = t_s[t_s.len() - 1] - t0;
+    let block = (span / 50.0).clamp(1e-6, 1.0);
+    t_s.iter()
+        .map(|t| ((t - t0) / block).floor() as u64)
+        .collect()
+}
+
 /// Minimum rows a fit accepts.
 pub const MIN_ROWS: usize = 20;
 
@@ -277,13 +288,7 @@ impl Dataset {
     /// Index of the time block of each row: blocks of 1 s, or shorter so that a recording has
     /// at least 50 of them.
     pub fn time_blocks(&self) -> Vec<u64> {
-        let t0 = self.t_s[0];
-        let span = self.t_s[self.len() - 1] - t0;
-        let block = (span / 50.0).clamp(1e-6, 1.0);
-        self.t_s
-            .iter()
-            .map(|t| ((t - t0) / block).floor() as u64)
-            .collect()
+        time_blocks_of(&self.t_s)
     }
 
     /// Splits rows into identification and held-out sets by time blocks: every fifth block is

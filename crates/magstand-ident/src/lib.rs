@@ -66,7 +66,7 @@ pub use config::{
 };
 pub use dataset::{
     Dataset, InputKind, InputSpec, MIN_ROWS, OFF_COMMAND, motors_off, motors_off_reference,
-    motors_off_rows,
+    motors_off_rows, time_blocks_of,
 };
 pub use error::{FitSetting, IdentError};
 pub use local_linear::{Estimation, LocalLinearNet};
