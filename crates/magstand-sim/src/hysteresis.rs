@@ -64,6 +64,43 @@ impl HysteresisState {
     }
 }
 
+/// The trace column of the play operator's output, A.
+pub const PLAY_A: &str = "play_a";
+
+/// Hysteresis of nearby steel as a stand module: a play operator fed the supply current at
+/// each sample, its field seen through the sensor's soft iron.
+#[derive(Debug, Clone)]
+pub struct HysteresisModule {
+    params: HysteresisParams,
+    state: HysteresisState,
+}
+
+impl HysteresisModule {
+    /// With the operator at zero.
+    pub fn new(p: &HysteresisParams) -> Self {
+        Self {
+            params: p.clone(),
+            state: HysteresisState::default(),
+        }
+    }
+}
+
+impl crate::stand_module::StandModule for HysteresisModule {
+    fn column(&self) -> &'static str {
+        PLAY_A
+    }
+    fn field_ut(&mut self, e: crate::stand_module::Electrical) -> Vec3 {
+        self.state.step(&self.params, e.total_a)
+    }
+    fn step(&mut self, _: crate::stand_module::Electrical, _: f64) {}
+    fn state(&self) -> f64 {
+        self.state.output_a
+    }
+    fn through_soft_iron(&self) -> bool {
+        true
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -58,6 +58,7 @@ pub mod replay;
 pub mod scenario;
 mod simulate;
 pub mod stand;
+pub mod stand_module;
 pub mod thermal;
 pub mod variation;
 pub mod wiring;

@@ -11,9 +11,8 @@
 //! than the sensor noise.
 use crate::Scenario;
 use crate::battery::SupplyState;
-use crate::hysteresis::HysteresisState;
 use crate::motor::MotorState;
-use crate::thermal::ThermalState;
+use crate::stand_module::{Electrical, modules};
 use magstand_core::Vec3;
 use magstand_core::interpolation::{interpolate, locate};
 
@@ -95,10 +94,10 @@ pub struct Trace {
     pub total_a: Vec<f64>,
     /// Supply voltage, V.
     pub voltage_v: Vec<f64>,
-    /// Board temperature, °C.
-    pub temp_c: Vec<f64>,
-    /// Output of the hysteresis play operator on the supply current, A.
-    pub play_a: Vec<f64>,
+    /// Every stand module's state per row, by its column name
+    /// ([`crate::stand_module::StandModule::column`]: `temp_c`, the board temperature in °C;
+    /// `play_a`, the hysteresis play operator's output in A).
+    pub modules: Vec<(&'static str, Vec<f64>)>,
     /// Field that the scenario fixes beyond a common gain on the motor currents, µT: the
     /// thermal offset and hysteresis when switched on, and the part of the wiring field that
     /// differs between motors (each motor's gain minus the motors' mean gain, times its
@@ -133,8 +132,7 @@ pub fn replay(
     let no_load_v = supply.voltage_v(&p.supply, 0.0);
     let full_speed = p.motors.steady_speed(0, 1.0, no_load_v).max(1e-9);
     let mut motors = vec![MotorState::default(); n_motors];
-    let mut thermal = ThermalState::new(&p.thermal);
-    let mut hysteresis = HysteresisState::default();
+    let mut stand_parts = modules(p);
     let all = p
         .wiring
         .gains(n_motors, Vec3::from(p.magnetometer.position_m))
@@ -149,8 +147,10 @@ pub fn replay(
         current_a: vec![Vec::with_capacity(rows); n_motors],
         total_a: Vec::with_capacity(rows),
         voltage_v: Vec::with_capacity(rows),
-        temp_c: Vec::with_capacity(rows),
-        play_a: Vec::with_capacity(rows),
+        modules: stand_parts
+            .iter()
+            .map(|m| (m.column(), Vec::with_capacity(rows)))
+            .collect(),
         extra_ut: Vec::with_capacity(rows),
     };
     let mut total_a = avionics;
@@ -186,15 +186,27 @@ pub fn replay(
                     total_a += st.current_a;
                 }
                 supply.step(total_a, h);
-                thermal.step(&p.thermal, voltage * total_a, h);
+                let electrical = Electrical {
+                    total_a,
+                    voltage_v: voltage,
+                };
+                for part in stand_parts.iter_mut() {
+                    part.step(electrical, h);
+                }
             }
         }
         let voltage = match bat_v {
             Some(v) => v[r],
             None => supply.voltage_v(&p.supply, total_a),
         };
-        let hyst_ut = hysteresis.step(&p.hysteresis, total_a);
-        let mut extra = hyst_ut + p.thermal.offset_ut(thermal.temp_c);
+        let electrical = Electrical {
+            total_a,
+            voltage_v: voltage,
+        };
+        let mut extra = Vec3::zeros();
+        for part in stand_parts.iter_mut() {
+            extra += part.field_ut(electrical);
+        }
         for (m, st) in motors.iter().enumerate() {
             tr.speed[m].push(st.speed_rad_s / full_speed);
             tr.driven[m].push(if p.motors.duty(command(m, acting[m])) > 0.0 {
@@ -209,8 +221,9 @@ pub fn replay(
         }
         tr.total_a.push(total_a);
         tr.voltage_v.push(voltage);
-        tr.temp_c.push(thermal.temp_c);
-        tr.play_a.push(hysteresis.output_a);
+        for ((_, col), part) in tr.modules.iter_mut().zip(&stand_parts) {
+            col.push(part.state());
+        }
         tr.extra_ut.push(extra);
     }
     if p.logging.mag_delay_s > 0.0 {
@@ -223,6 +236,14 @@ impl Trace {
     /// Number of rows.
     pub fn len(&self) -> usize {
         self.t_s.len()
+    }
+
+    /// The column of the stand module recording `name`, if there is one.
+    pub fn column(&self, name: &str) -> Option<&[f64]> {
+        self.modules
+            .iter()
+            .find(|(n, _)| *n == name)
+            .map(|(_, c)| c.as_slice())
     }
 
     /// Whether the trace has no rows.
@@ -243,8 +264,9 @@ impl Trace {
         }
         shift(&mut self.total_a, &at);
         shift(&mut self.voltage_v, &at);
-        shift(&mut self.temp_c, &at);
-        shift(&mut self.play_a, &at);
+        for (_, col) in self.modules.iter_mut() {
+            shift(col, &at);
+        }
         shift(&mut self.extra_ut, &at);
     }
 }

@@ -6,11 +6,11 @@ use rand::{RngExt, SeedableRng};
 use rand_distr::StandardNormal;
 
 use crate::battery::SupplyState;
-use crate::hysteresis::HysteresisState;
 use crate::motor::MotorState;
 use crate::scenario::{DisturbanceSource, ValidScenario};
 use crate::stand::Stand;
-use crate::thermal::ThermalState;
+use crate::stand_module::{Electrical, modules, state_of};
+use crate::thermal::TEMP_C;
 use magstand_core::rbf::{UT_PER_GAUSS, paper_tables};
 use magstand_core::{GroundTruth, ImuColumns, Recording, Vec3};
 
@@ -88,8 +88,7 @@ pub fn simulate_observed(s: &ValidScenario, seed: u64, observer: &mut dyn Observ
         .collect();
     let mut noise_rng = stream_rng(seed, Stream::Noise);
     let mut supply = SupplyState::default();
-    let mut thermal = ThermalState::new(&p.thermal);
-    let mut hysteresis = HysteresisState::default();
+    let mut parts = modules(p);
     let mut stand = Stand::new(&p.stand, &p.motors, dt);
     let mut body = stand.step(&p.motors, &motors);
     let mut history: VecDeque<Snapshot> = VecDeque::with_capacity(delay_steps + 1);
@@ -135,13 +134,25 @@ pub fn simulate_observed(s: &ValidScenario, seed: u64, observer: &mut dyn Observ
                 Vec3::new(d(0), d(1), d(2))
             }
         };
-        let hyst_field = soft * hysteresis.step(&p.hysteresis, total_a);
+        let electrical = Electrical {
+            total_a,
+            voltage_v: voltage,
+        };
+        let mut dist = motor_field;
+        for part in parts.iter_mut() {
+            let f = part.field_ut(electrical);
+            dist += if part.through_soft_iron() {
+                soft * f
+            } else {
+                f
+            };
+        }
         let attitude = p.motion.rotation(t) * body.attitude;
         let snapshot = Snapshot {
             field: soft
                 * (attitude.inverse() * earth + avionics_field + p.interference.field_ut(t))
                 + hard,
-            dist: motor_field + hyst_field + p.thermal.offset_ut(thermal.temp_c),
+            dist,
             sd: Vec3::from(p.noise.sd_ut(total_a, throttle)),
         };
         if history.len() > delay_steps {
@@ -167,8 +178,8 @@ pub fn simulate_observed(s: &ValidScenario, seed: u64, observer: &mut dyn Observ
             if let Some(a) = rec.bat_a.as_mut() {
                 a.push(total_a);
             }
-            if let Some(tc) = rec.temp_c.as_mut() {
-                tc.push(thermal.temp_c);
+            if let (Some(tc), Some(temp_c)) = (rec.temp_c.as_mut(), state_of(&parts, TEMP_C)) {
+                tc.push(temp_c);
             }
             if let Some(imu) = rec.imu.as_mut() {
                 imu.acc_mps2.push(body.specific_force_mps2);
@@ -192,7 +203,13 @@ pub fn simulate_observed(s: &ValidScenario, seed: u64, observer: &mut dyn Observ
         }
         total_a = currents.iter().sum::<f64>() + avionics;
         supply.step(total_a, dt);
-        thermal.step(&p.thermal, voltage * total_a, dt);
+        let electrical = Electrical {
+            total_a,
+            voltage_v: voltage,
+        };
+        for part in parts.iter_mut() {
+            part.step(electrical, dt);
+        }
         body = stand.step(&p.motors, &motors);
 
         if k % progress_every == 0 {

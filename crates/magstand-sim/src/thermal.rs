@@ -81,6 +81,45 @@ impl ThermalState {
     }
 }
 
+/// The trace column of the board temperature, °C.
+pub const TEMP_C: &str = "temp_c";
+
+/// Board heating as a stand module: heats with the electrical power, adds the sensor's offset
+/// drift (inside the sensor, so not through its soft iron).
+#[derive(Debug, Clone)]
+pub struct ThermalModule {
+    params: ThermalParams,
+    state: ThermalState,
+}
+
+impl ThermalModule {
+    /// At ambient temperature.
+    pub fn new(p: &ThermalParams) -> Self {
+        Self {
+            params: p.clone(),
+            state: ThermalState::new(p),
+        }
+    }
+}
+
+impl crate::stand_module::StandModule for ThermalModule {
+    fn column(&self) -> &'static str {
+        TEMP_C
+    }
+    fn field_ut(&mut self, _: crate::stand_module::Electrical) -> Vec3 {
+        self.params.offset_ut(self.state.temp_c)
+    }
+    fn step(&mut self, e: crate::stand_module::Electrical, dt_s: f64) {
+        self.state.step(&self.params, e.voltage_v * e.total_a, dt_s);
+    }
+    fn state(&self) -> f64 {
+        self.state.temp_c
+    }
+    fn through_soft_iron(&self) -> bool {
+        false
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

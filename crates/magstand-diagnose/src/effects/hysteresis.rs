@@ -38,7 +38,12 @@ impl Effect for Hysteresis {
         s.hysteresis.play_a = theta[0];
     }
     fn regressors(&self, _ctx: &Context, trace: &Trace, _theta: &[f64]) -> Vec<(String, Vec<f64>)> {
-        vec![("play_a".into(), trace.play_a.clone())]
+        // The hysteresis module is always part of the stand; a trace without its column
+        // (none is made) would regress on nothing.
+        let play = trace
+            .column(magstand_sim::hysteresis::PLAY_A)
+            .map_or_else(|| vec![0.0; trace.len()], <[f64]>::to_vec);
+        vec![("play_a".into(), play)]
     }
     fn switch_on(&self, _ctx: &Context, s: &mut Scenario, f: &EffectFit) -> Vec<Param> {
         s.hysteresis.enabled = true;
