@@ -146,4 +146,20 @@ fn a_physics_model_compensates_and_exports_over_a_recordings_rows() {
         text.contains("\"choice\"") && text.contains("\"rule\""),
         "{text}"
     );
+    // And the report shows the table.
+    let r = magstand(&[
+        "report",
+        "--recording",
+        &valid,
+        "--model",
+        &chosen,
+        "--out",
+        &p("rep2"),
+    ]);
+    assert!(r.ok, "{}", r.stderr);
+    let page = std::fs::read_to_string(p("rep2/index.html")).unwrap();
+    assert!(
+        page.contains("(kept)") && page.contains("one standard error"),
+        "no choice table"
+    );
 }

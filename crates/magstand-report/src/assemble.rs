@@ -112,6 +112,9 @@ pub fn build(inputs: &ReportInputs) -> Result<Report, ReportError> {
                     .collect(),
             ));
         }
+        if let Some(c) = &model.choice {
+            push_choice(&mut s, c);
+        }
         if let Some(svg) = figures::rbf_weights(model)? {
             s.figure(
                 "rbf-weights",
@@ -157,6 +160,9 @@ pub fn build(inputs: &ReportInputs) -> Result<Report, ReportError> {
             },
             physics.parameter_count()
         ));
+        if let Some(c) = &physics.choice {
+            push_choice(&mut s, c);
+        }
         report.sections.push(s);
         let dist = physics.dist_column(rec, &inputs.recording_name)?;
         let ev = Evaluation::from_prediction_at(physics.reference_ut(), rec, &dist);
@@ -302,4 +308,47 @@ fn compensation_section(
     }
     s.tables.push((head, rows));
     Ok(s)
+}
+
+/// The table of an automatic choice among model families, and why the kept one won.
+fn push_choice(s: &mut Section, c: &magstand_ident::family_choice::FamilyChoice) {
+    s.text.push(format!(
+        "The family was chosen by `magstand fit`: every family that applies was fitted without the held-out time blocks and judged on {} held-out rows in {} blocks. Rule: {}. Kept: {}: {}.",
+        c.holdout_rows, c.holdout_blocks, c.rule, c.chosen, c.reason
+    ));
+    s.tables.push((
+        [
+            "family",
+            "parameters",
+            "held-out RMSE x / y / z (µT)",
+            "excess over the lowest (µT²)",
+        ]
+        .map(String::from)
+        .to_vec(),
+        c.families
+            .iter()
+            .map(|f| match (f.holdout_rmse_ut, f.parameters) {
+                (Some(r), Some(p)) => vec![
+                    if f.family == c.chosen {
+                        format!("{} (kept)", f.family)
+                    } else {
+                        f.family.clone()
+                    },
+                    p.to_string(),
+                    format!("{} / {} / {}", f3(r[0]), f3(r[1]), f3(r[2])),
+                    format!(
+                        "{:.2e} ± {:.1e}",
+                        f.excess_ut2.unwrap_or(0.0),
+                        f.excess_se_ut2.unwrap_or(0.0)
+                    ),
+                ],
+                _ => vec![
+                    f.family.clone(),
+                    "-".into(),
+                    f.note.clone().unwrap_or_else(|| "not scored".into()),
+                    "-".into(),
+                ],
+            })
+            .collect(),
+    ));
 }
