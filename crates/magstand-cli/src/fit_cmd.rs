@@ -452,7 +452,7 @@ fn print_physics(p: &magstand_diagnose::model_choice::PhysicsFit) {
 }
 
 /// Prints the table of an automatic choice.
-fn print_choice(c: &magstand_ident::family_choice::FamilyChoice) {
+pub fn print_choice(c: &magstand_ident::family_choice::FamilyChoice) {
     println!(
         "model families, judged on {} held-out rows in {} time blocks:",
         c.holdout_rows, c.holdout_blocks

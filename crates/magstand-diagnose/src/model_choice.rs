@@ -305,6 +305,15 @@ impl DisturbanceModel {
         }
     }
 
+    /// The recording with the predicted disturbance removed and `dist_*_ut` (and `sd_*_ut`
+    /// where the model has a noise law) added.
+    pub fn compensate(&self, rec: &Recording, origin: &str) -> Result<Recording, DiagnoseError> {
+        match self {
+            DisturbanceModel::LocalLinear(m) => Ok(m.compensate(rec, origin)?),
+            DisturbanceModel::Physics(m) => m.compensate(rec, origin),
+        }
+    }
+
     /// Writes the model file, atomically.
     pub fn save(&self, path: &std::path::Path) -> Result<(), DiagnoseError> {
         match self {
