@@ -91,7 +91,7 @@ pub fn against_truth(rec: &Recording, dist: &[Vec3]) -> Option<([f64; 3], [f64; 
 fn level_of(rec: &Recording) -> (Vec<f64>, Vec<usize>) {
     let thr = rec.overall_throttle_column();
     let mut distinct: Vec<f64> = thr.iter().map(|t| (t * 1e4).round() / 1e4).collect();
-    distinct.sort_by(f64::total_cmp);
+    distinct.sort_unstable_by(f64::total_cmp);
     distinct.dedup();
     if distinct.len() <= 60 {
         let idx = thr

@@ -146,7 +146,7 @@ impl IdentifiedRange {
         if all.is_empty() {
             return None;
         }
-        all.sort_by(f64::total_cmp);
+        all.sort_unstable_by(f64::total_cmp);
         let on: Vec<f64> = all.iter().copied().filter(|x| *x > off_u + 1e-9).collect();
         let v = if on.is_empty() { &all } else { &on };
         let q = |p: f64| v[((v.len() - 1) as f64 * p).round() as usize];
