@@ -86,8 +86,7 @@ pub fn growth(forgetting: f64) -> f64 {
 /// The recursion's state: the coefficients and their scaled covariance.
 #[derive(Debug, Clone)]
 pub struct Adaptive {
-    centers: Vec<f64>,
-    widths: Vec<f64>,
+    partition: magstand_core::rbf::RbfPartition,
     lo: f64,
     hi: f64,
     off_u: f64,
@@ -143,8 +142,7 @@ impl Adaptive {
             .as_ref()
             .map_or((f64::NEG_INFINITY, f64::INFINITY), |r| (r.lo, r.hi));
         let mut s = Self {
-            centers: net.partition.centers().to_vec(),
-            widths: net.partition.widths().to_vec(),
+            partition: net.partition.clone(),
             lo: model.input.lo,
             hi: model.input.hi,
             off_u: model.input.normalize(model.input.off_raw),
@@ -171,22 +169,7 @@ impl Adaptive {
         } else {
             u
         };
-        // As RbfPartition: exponents shifted by their smallest, so the largest weight is 1
-        // before normalizing and nothing underflows to 0/0.
-        let mut min_e = f64::INFINITY;
-        for i in 0..self.phi.len() {
-            let d = self.widths[i] * (self.centers[i] - e);
-            self.phi[i] = d * d;
-            min_e = min_e.min(self.phi[i]);
-        }
-        let mut sum = 0.0;
-        for w in self.phi.iter_mut() {
-            *w = (min_e - *w).exp();
-            sum += *w;
-        }
-        for w in self.phi.iter_mut() {
-            *w /= sum;
-        }
+        self.partition.weights_into(e, &mut self.phi);
     }
 
     /// `z(u)` into `z`, leaving the memberships in `self.phi`.
