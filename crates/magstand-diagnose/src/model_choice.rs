@@ -73,10 +73,9 @@ pub fn fit_physics(
 /// fit of `rec` ([`Dataset::holdout_mask`]): blocks of 1/50 of the span (at most 1 s), every
 /// fifth held out.
 pub fn identification_split(rec: &Recording) -> DiagnoseConfig {
-    let span = rec.t_s.last().copied().unwrap_or(0.0) - rec.t_s.first().copied().unwrap_or(0.0);
     DiagnoseConfig {
-        block_s: Some((span / 50.0).clamp(1e-6, 1.0)),
-        holdout_every: 5,
+        block_s: Some(magstand_ident::identification_block_s(&rec.t_s)),
+        holdout_every: magstand_ident::HOLDOUT_EVERY,
         ..Default::default()
     }
 }
@@ -182,8 +181,11 @@ pub fn choose_model(
     // out when the physics was fitted.
     let mut mask = throttle.2.clone();
     if physics.is_ok() {
-        let physics_split =
-            crate::split::Split::new(&rec.t_s, identification_split(rec).block_s, 5);
+        let physics_split = crate::split::Split::new(
+            &rec.t_s,
+            identification_split(rec).block_s,
+            magstand_ident::HOLDOUT_EVERY,
+        );
         for (m, p) in mask.iter_mut().zip(&physics_split.holdout) {
             *m &= *p;
         }

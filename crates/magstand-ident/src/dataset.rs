@@ -157,12 +157,21 @@ pub fn motors_off_reference(rec: &Recording, off_rows: &[usize]) -> Option<Vec3>
         .then(|| off_rows.iter().map(|&r| rec.mag_ut[r]).sum::<Vec3>() / off_rows.len() as f64)
 }
 
-/// The identification split's time block of each of the times `t_s` (ascending, not empty):
-/// blocks of 1 s, or shorter so that the span holds at least 50 of them.
+/// Every how many time blocks the identification split holds one out.
+pub const HOLDOUT_EVERY: usize = 5;
+
+/// The identification split's block length for the times `t_s` (ascending), s: 1 s, or
+/// shorter so that the span holds at least 50 blocks.
+pub fn identification_block_s(t_s: &[f64]) -> f64 {
+    let span = t_s.last().copied().unwrap_or(0.0) - t_s.first().copied().unwrap_or(0.0);
+    (span / 50.0).clamp(1e-6, 1.0)
+}
+
+/// The identification split's time block of each of the times `t_s` (ascending, not empty),
+/// of [`identification_block_s`].
 pub fn time_blocks_of(t_s: &[f64]) -> Vec<u64> {
     let t0 = t_s[0];
-    let span = t_s[t_s.len() - 1] - t0;
-    let block = (span / 50.0).clamp(1e-6, 1.0);
+    let block = identification_block_s(t_s);
     t_s.iter()
         .map(|t| ((t - t0) / block).floor() as u64)
         .collect()
@@ -294,6 +303,10 @@ impl Dataset {
     /// Splits rows into identification and held-out sets by time blocks: every fifth block is
     /// held out, so that held-out samples are not neighbours of fitted ones.
     pub fn holdout_mask(&self) -> Vec<bool> {
-        self.time_blocks().into_iter().map(|b| b % 5 == 4).collect()
+        let every = HOLDOUT_EVERY as u64;
+        self.time_blocks()
+            .into_iter()
+            .map(|b| b % every == every - 1)
+            .collect()
     }
 }

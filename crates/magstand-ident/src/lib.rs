@@ -65,8 +65,8 @@ pub use config::{
     paper_ratio_width,
 };
 pub use dataset::{
-    Dataset, InputKind, InputSpec, MIN_ROWS, OFF_COMMAND, motors_off, motors_off_reference,
-    motors_off_rows, time_blocks_of,
+    Dataset, HOLDOUT_EVERY, InputKind, InputSpec, MIN_ROWS, OFF_COMMAND, identification_block_s,
+    motors_off, motors_off_reference, motors_off_rows, time_blocks_of,
 };
 pub use error::{FitSetting, IdentError};
 pub use local_linear::{Estimation, LocalLinearNet};
