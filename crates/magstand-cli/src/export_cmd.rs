@@ -98,9 +98,6 @@ fn emit(a: &ExportArgs, text: &str) -> Result<()> {
 /// it has no form over one input to write as code, and no line without the rows it applies
 /// to.
 fn export_physics(a: &ExportArgs, model: &magstand_diagnose::AugmentedModel) -> Result<()> {
-    if a.forgetting.is_some() {
-        bail!("--forgetting sets the recursion of --to c-adaptive or rust-adaptive");
-    }
     if !matches!(
         a.target,
         Target::Px4 | Target::Ardupilot | Target::ArdupilotPerMotor
@@ -135,11 +132,6 @@ fn export_physics(a: &ExportArgs, model: &magstand_diagnose::AugmentedModel) -> 
             }
         }
         _ => {
-            if a.instance.is_some_and(|i| i != 1) {
-                bail!(
-                    "ArduPilot applies per-motor compensation to the first compass only; drop --instance or give 1"
-                );
-            }
             let fit = per_motor_over_prediction(&dist, reference, &rec, &origin)?;
             eprint!("{}", describe_per_motor(&fit));
             per_motor_params(&fit)
@@ -148,8 +140,30 @@ fn export_physics(a: &ExportArgs, model: &magstand_diagnose::AugmentedModel) -> 
     emit(a, &text)
 }
 
+/// The settings that name a parameter or a form, checked before any work is done for them
+/// (for every kind of model alike).
+fn check_settings(a: &ExportArgs) -> Result<()> {
+    let adaptive = matches!(a.target, Target::CAdaptive | Target::RustAdaptive);
+    if a.forgetting.is_some() && !adaptive {
+        bail!("--forgetting sets the recursion of --to c-adaptive or rust-adaptive");
+    }
+    match (a.target, a.instance) {
+        (Target::Px4, Some(i)) if i > 3 => {
+            bail!("--instance {i}: PX4 magnetometers are numbered CAL_MAG0 to CAL_MAG3")
+        }
+        (Target::Ardupilot, Some(i)) if !(1..=3).contains(&i) => {
+            bail!("--instance {i}: ArduPilot compasses are numbered 1 to 3")
+        }
+        (Target::ArdupilotPerMotor, Some(i)) if i != 1 => bail!(
+            "ArduPilot applies per-motor compensation to the first compass only; drop --instance or give 1"
+        ),
+        _ => Ok(()),
+    }
+}
+
 /// Runs `magstand export`.
 pub fn run(a: ExportArgs) -> Result<()> {
+    check_settings(&a)?;
     if let Some(o) = &a.out {
         let mut inputs = vec![a.model.as_path()];
         inputs.extend(a.recording.as_deref());
@@ -179,10 +193,6 @@ pub fn run(a: ExportArgs) -> Result<()> {
         Some(InputArg::Current) => LineInput::Current,
         None => LineInput::of(&model),
     };
-    let adaptive = matches!(a.target, Target::CAdaptive | Target::RustAdaptive);
-    if a.forgetting.is_some() && !adaptive {
-        bail!("--forgetting sets the recursion of --to c-adaptive or rust-adaptive");
-    }
     let adapt_config = magstand_ident::adaptive::AdaptConfig {
         forgetting: a
             .forgetting
@@ -200,16 +210,6 @@ pub fn run(a: ExportArgs) -> Result<()> {
             "--input chooses the autopilot line's input; the firmware exports take the model's own input ({:?})",
             model.input.kind
         );
-    }
-    // The instance names a parameter: checked before any work is done for it.
-    match (a.target, a.instance) {
-        (Target::Px4, Some(i)) if i > 3 => {
-            bail!("--instance {i}: PX4 magnetometers are numbered CAL_MAG0 to CAL_MAG3")
-        }
-        (Target::Ardupilot, Some(i)) if !(1..=3).contains(&i) => {
-            bail!("--instance {i}: ArduPilot compasses are numbered 1 to 3")
-        }
-        _ => {}
     }
     // What the autopilot forms cost goes to stderr, so stdout stays a clean file.
     let text = match a.target {
@@ -233,11 +233,6 @@ pub fn run(a: ExportArgs) -> Result<()> {
                     "--to ardupilot-per-motor fits each motor's coefficient over a recording: give --recording R.csv (with bat_v and spans where the motors differ)"
                 );
             };
-            if a.instance.is_some_and(|i| i != 1) {
-                bail!(
-                    "ArduPilot applies per-motor compensation to the first compass only; drop --instance or give 1"
-                );
-            }
             let fit = per_motor_fit(&model, rec, &origin)?;
             eprint!("{}", describe_per_motor(&fit));
             per_motor_params(&fit)
