@@ -49,6 +49,16 @@ fn truth_rmse_by_family(
     out
 }
 
+/// Fails unless the `chosen` family's truth RMSE is within 1.25 times the best family's.
+fn assert_within_truths_best(by_family: &[(String, f64)], chosen: &str) {
+    let best = by_family.iter().map(|f| f.1).fold(f64::INFINITY, f64::min);
+    let mine = by_family.iter().find(|f| f.0 == chosen).unwrap().1;
+    assert!(
+        mine <= 1.25 * best,
+        "chosen {chosen} {mine} µT, families {by_family:?}"
+    );
+}
+
 /// With `bat_a` logged every family applies; the one chosen by held-out error is, against
 /// the generator's truth on another recording, within 0.015 µT RMS on every axis (the
 /// issue's goal), and no worse than 1.25 times the most accurate family.
@@ -82,13 +92,7 @@ fn with_current_logged_the_choice_meets_the_goal_on_an_independent_stand() {
         chosen.family()
     );
     let by_family = truth_rmse_by_family(&ident, &valid, &truth);
-    let best = by_family.iter().map(|f| f.1).fold(f64::INFINITY, f64::min);
-    let mine = by_family.iter().find(|f| f.0 == chosen.family()).unwrap().1;
-    assert!(
-        mine <= 1.25 * best,
-        "chosen {} {mine} µT, families {by_family:?}",
-        chosen.family()
-    );
+    assert_within_truths_best(&by_family, chosen.family());
 }
 
 /// Without `bat_a` the current family is not tried and says why; the choice still agrees
@@ -116,13 +120,7 @@ fn without_current_the_choice_follows_the_truth_ranking() {
         by_family.iter().all(|f| f.0 != "automatic-current"),
         "{by_family:?}"
     );
-    let best = by_family.iter().map(|f| f.1).fold(f64::INFINITY, f64::min);
-    let mine = by_family.iter().find(|f| f.0 == chosen.family()).unwrap().1;
-    assert!(
-        mine <= 1.25 * best,
-        "chosen {} {mine} µT, families {by_family:?}",
-        chosen.family()
-    );
+    assert_within_truths_best(&by_family, chosen.family());
 }
 
 /// A recording that is not from a restrained stand (a flight: its rows marked `flight`, its
