@@ -74,7 +74,7 @@ pub const MAX_GAIN_UT_PER_A: f64 = 1e3;
 /// Largest distance in a stand's geometry (sensor position, wire ends, loops), m.
 pub const MAX_DISTANCE_M: f64 = 10.0;
 pub use scenario::{Scenario, ValidScenario};
-pub use simulate::{Observer, Silent, simulate, simulate_observed};
+pub use simulate::{Observer, Silent, simulate, simulate_batch, simulate_observed};
 
 /// Scenarios shipped in `scenarios/`, embedded so that the binary runs without the source tree.
 pub mod builtin {

@@ -7,11 +7,13 @@ use rand_distr::StandardNormal;
 
 use crate::battery::SupplyState;
 use crate::motor::MotorState;
-use crate::scenario::{DisturbanceSource, ValidScenario};
-use crate::stand::Stand;
-use crate::stand_module::{Electrical, modules, state_of};
+use crate::program::Program;
+use crate::scenario::{DisturbanceSource, Scenario, ValidScenario};
+use crate::stand::{BodyState, StandHandle, StandWorld};
+use crate::stand_module::{Electrical, StandModule, modules, state_of};
 use crate::thermal::TEMP_C;
-use magstand_core::rbf::{UT_PER_GAUSS, paper_tables};
+use crate::wiring::WiringGains;
+use magstand_core::rbf::{LocalLinear1d, UT_PER_GAUSS, paper_tables};
 use magstand_core::{GroundTruth, ImuColumns, Recording, Vec3};
 
 /// Independent random streams, so that changing one part of a scenario (say, the noise level)
@@ -57,77 +59,208 @@ pub fn simulate(s: &ValidScenario, seed: u64) -> Recording {
 
 /// Simulates a scenario with `seed`, reporting progress to `observer`.
 pub fn simulate_observed(s: &ValidScenario, seed: u64, observer: &mut dyn Observer) -> Recording {
-    let p = s.params();
-    let n_motors = p.motors.count;
-    let dt = 1.0 / p.physics_hz;
-    let program = p.program.compile(
-        n_motors,
-        &mut stream_rng(seed, Stream::Program),
-        s.replay(),
-        &p.differential,
-    );
-    let duration = program.duration_s();
-    let steps = (duration / dt).round() as usize;
-    let sample_every = 1.0 / p.magnetometer.odr_hz;
-    let delay_steps = (p.logging.mag_delay_s / dt).round() as usize;
+    let mut world = StandWorld::new(1.0 / s.params().physics_hz);
+    let mut run = Run::new(s, seed, &mut world);
+    world.step();
+    run.read_body(&mut world);
+    let progress_every = (run.steps / 200).max(1);
+    for k in 0..run.steps {
+        run.advance(k, &mut world);
+        world.step();
+        run.read_body(&mut world);
+        if k % progress_every == 0 {
+            observer.progress(k as f64 * run.dt, run.duration_s);
+        }
+    }
+    observer.progress(run.duration_s, run.duration_s);
+    run.rec
+}
 
-    let sensor_pos = Vec3::from(p.magnetometer.position_m);
-    let gains = p.wiring.gains(n_motors, sensor_pos);
-    let tables = paper_tables();
-    let tables_at_zero: Vec<f64> = tables.iter().map(|m| m.eval(0.0)).collect();
-    let soft = p.magnetometer.soft_iron_matrix();
-    let hard = Vec3::from(p.magnetometer.hard_iron_ut);
-    let earth = p.magnetometer.earth.ned_ut();
-
-    let mut rotor_rng = stream_rng(seed, Stream::Rotors);
-    let mut motors: Vec<MotorState> = (0..n_motors)
-        .map(|_| MotorState {
-            angle_rad: std::f64::consts::TAU * rotor_rng.random::<f64>(),
-            ..Default::default()
-        })
+/// Simulates several scenarios, each with its own seed, their stands sharing one rapier world.
+///
+/// Each recording is the same, byte for byte, as [`simulate`] gives for that scenario and seed
+/// alone: the stands never interact, and every random stream belongs to one run. Only the cost
+/// changes: one rapier pipeline step serves all the stands of a batch (see [`StandWorld`]).
+/// Scenarios with different physics rates go to separate worlds.
+pub fn simulate_batch(runs: &[(&ValidScenario, u64)]) -> Vec<Recording> {
+    let mut out: Vec<Option<Recording>> = vec![None; runs.len()];
+    let mut rates: Vec<u64> = runs
+        .iter()
+        .map(|(s, _)| s.params().physics_hz.to_bits())
         .collect();
-    let mut noise_rng = stream_rng(seed, Stream::Noise);
-    let mut supply = SupplyState::default();
-    let mut parts = modules(p);
-    let mut stand = Stand::new(&p.stand, &p.motors, dt);
-    let mut body = stand.step(&p.motors, &motors);
-    let mut history: VecDeque<Snapshot> = VecDeque::with_capacity(delay_steps + 1);
+    rates.sort_unstable();
+    rates.dedup();
+    for rate in rates {
+        let members: Vec<usize> = (0..runs.len())
+            .filter(|&i| runs[i].0.params().physics_hz.to_bits() == rate)
+            .collect();
+        let mut world = StandWorld::new(1.0 / f64::from_bits(rate));
+        let mut batch: Vec<Run> = members
+            .iter()
+            .map(|&i| Run::new(runs[i].0, runs[i].1, &mut world))
+            .collect();
+        world.step();
+        for run in batch.iter_mut() {
+            run.read_body(&mut world);
+        }
+        let longest = batch.iter().map(|r| r.steps).max().unwrap_or(0);
+        for k in 0..longest {
+            for run in batch.iter_mut().filter(|r| k < r.steps) {
+                run.advance(k, &mut world);
+            }
+            world.step();
+            for run in batch.iter_mut().filter(|r| k < r.steps) {
+                run.read_body(&mut world);
+                if k + 1 == run.steps {
+                    // Its run is over: the body would only cost pipeline time.
+                    world.remove(run.handle);
+                }
+            }
+        }
+        for (run, &i) in batch.into_iter().zip(&members) {
+            out[i] = Some(run.rec);
+        }
+    }
+    out.into_iter().flatten().collect()
+}
 
-    let rows_hint = (duration / sample_every) as usize + 2;
-    let mut rec = Recording {
-        thr: vec![Vec::with_capacity(rows_hint); n_motors],
-        bat_v: p.logging.record_power.then(Vec::new),
-        bat_a: p.logging.record_power.then(Vec::new),
-        temp_c: p.logging.record_temp.then(Vec::new),
-        imu: p.logging.record_imu.then(ImuColumns::default),
-        truth: p.logging.record_truth.then(GroundTruth::default),
-        attitude: p.logging.record_attitude.then(Vec::new),
-        ..Recording::default()
-    };
-    let mut commands = vec![0.0; n_motors];
-    let mut currents = vec![0.0; n_motors];
-    let avionics = p.supply.avionics_current_a();
-    let mut total_a = avionics;
-    let avionics_field = gains.total_ut_per_a * avionics;
-    let mut next_sample = 0usize;
-    let progress_every = (steps / 200).max(1);
+/// One stand's simulation in progress: everything but its rigid body, which a [`StandWorld`]
+/// holds and steps.
+struct Run<'a> {
+    p: &'a Scenario,
+    program: Program,
+    dt: f64,
+    duration_s: f64,
+    steps: usize,
+    sample_every: f64,
+    delay_steps: usize,
+    gains: WiringGains,
+    tables: [LocalLinear1d; 3],
+    tables_at_zero: Vec<f64>,
+    soft: nalgebra::Matrix3<f64>,
+    hard: Vec3,
+    earth: Vec3,
+    motors: Vec<MotorState>,
+    noise_rng: Xoshiro256PlusPlus,
+    supply: SupplyState,
+    parts: Vec<Box<dyn StandModule>>,
+    handle: StandHandle,
+    body: BodyState,
+    history: VecDeque<Snapshot>,
+    rec: Recording,
+    commands: Vec<f64>,
+    currents: Vec<f64>,
+    avionics_a: f64,
+    total_a: f64,
+    avionics_field: Vec3,
+    next_sample: usize,
+}
 
-    for k in 0..steps {
-        let t = k as f64 * dt;
-        program.commands_into(t, &mut commands);
-        let throttle = commands.iter().sum::<f64>() / n_motors as f64;
-        let voltage = supply.voltage_v(&p.supply, total_a);
+impl<'a> Run<'a> {
+    /// Prepares the run and puts its stand into `world`, with the forces of its first step.
+    fn new(s: &'a ValidScenario, seed: u64, world: &mut StandWorld) -> Self {
+        let p = s.params();
+        let n_motors = p.motors.count;
+        let dt = 1.0 / p.physics_hz;
+        let program = p.program.compile(
+            n_motors,
+            &mut stream_rng(seed, Stream::Program),
+            s.replay(),
+            &p.differential,
+        );
+        let duration_s = program.duration_s();
+        let sample_every = 1.0 / p.magnetometer.odr_hz;
+        let sensor_pos = Vec3::from(p.magnetometer.position_m);
+        let gains = p.wiring.gains(n_motors, sensor_pos);
+        let tables = paper_tables();
+        let tables_at_zero: Vec<f64> = tables.iter().map(|m| m.eval(0.0)).collect();
+        let mut rotor_rng = stream_rng(seed, Stream::Rotors);
+        let motors: Vec<MotorState> = (0..n_motors)
+            .map(|_| MotorState {
+                angle_rad: std::f64::consts::TAU * rotor_rng.random::<f64>(),
+                ..Default::default()
+            })
+            .collect();
+        let handle = world.add(&p.stand, &p.motors);
+        world.apply(handle, &p.motors, &motors);
+        let delay_steps = (p.logging.mag_delay_s / dt).round() as usize;
+        let rows_hint = (duration_s / sample_every) as usize + 2;
+        let rec = Recording {
+            thr: vec![Vec::with_capacity(rows_hint); n_motors],
+            bat_v: p.logging.record_power.then(Vec::new),
+            bat_a: p.logging.record_power.then(Vec::new),
+            temp_c: p.logging.record_temp.then(Vec::new),
+            imu: p.logging.record_imu.then(ImuColumns::default),
+            truth: p.logging.record_truth.then(GroundTruth::default),
+            attitude: p.logging.record_attitude.then(Vec::new),
+            ..Recording::default()
+        };
+        let avionics_a = p.supply.avionics_current_a();
+        Self {
+            p,
+            program,
+            dt,
+            duration_s,
+            steps: (duration_s / dt).round() as usize,
+            sample_every,
+            delay_steps,
+            avionics_field: gains.total_ut_per_a * avionics_a,
+            gains,
+            tables,
+            tables_at_zero,
+            soft: p.magnetometer.soft_iron_matrix(),
+            hard: Vec3::from(p.magnetometer.hard_iron_ut),
+            earth: p.magnetometer.earth.ned_ut(),
+            motors,
+            noise_rng: stream_rng(seed, Stream::Noise),
+            supply: SupplyState::default(),
+            parts: modules(p),
+            handle,
+            body: BodyState {
+                attitude: p.stand.rest_attitude(),
+                specific_force_mps2: Vec3::zeros(),
+                rate_rps: Vec3::zeros(),
+            },
+            history: VecDeque::with_capacity(delay_steps + 1),
+            rec,
+            commands: vec![0.0; n_motors],
+            currents: vec![0.0; n_motors],
+            avionics_a,
+            total_a: avionics_a,
+            next_sample: 0,
+        }
+    }
+
+    /// Reads the body's state after a world step.
+    fn read_body(&mut self, world: &mut StandWorld) {
+        self.body = world.state(self.handle);
+    }
+
+    /// Step `k`: records a sample when one is due, advances the electrical part under the
+    /// commands of time `k dt`, and sets the motors' forces on the body for the world's step.
+    fn advance(&mut self, k: usize, world: &mut StandWorld) {
+        let p = self.p;
+        let n_motors = self.commands.len();
+        let t = k as f64 * self.dt;
+        self.program.commands_into(t, &mut self.commands);
+        let throttle = self.commands.iter().sum::<f64>() / n_motors as f64;
+        let voltage = self.supply.voltage_v(&p.supply, self.total_a);
+        let soft = self.soft;
 
         // What the sensor sees now, from the state reached at time t.
         let motor_field = match p.disturbance.source {
             // The avionics current flows with the motors off too: its field is part of m, and
             // only what the motors add is the disturbance (eq. 9).
-            DisturbanceSource::Wiring => soft * gains.field_ut(total_a - avionics, &currents),
+            DisturbanceSource::Wiring => {
+                soft * self
+                    .gains
+                    .field_ut(self.total_a - self.avionics_a, &self.currents)
+            }
             DisturbanceSource::PaperTables => {
                 // Tables I-III give the deviation in gauss of the commanded overall throttle;
                 // eq. 9 makes it zero with the motors off.
                 let d = |a: usize| {
-                    (tables[a].eval(throttle) - tables_at_zero[a])
+                    (self.tables[a].eval(throttle) - self.tables_at_zero[a])
                         * UT_PER_GAUSS
                         * p.disturbance.scale
                 };
@@ -135,11 +268,11 @@ pub fn simulate_observed(s: &ValidScenario, seed: u64, observer: &mut dyn Observ
             }
         };
         let electrical = Electrical {
-            total_a,
+            total_a: self.total_a,
             voltage_v: voltage,
         };
         let mut dist = motor_field;
-        for part in parts.iter_mut() {
+        for part in self.parts.iter_mut() {
             let f = part.field_ut(electrical);
             dist += if part.through_soft_iron() {
                 soft * f
@@ -147,27 +280,31 @@ pub fn simulate_observed(s: &ValidScenario, seed: u64, observer: &mut dyn Observ
                 f
             };
         }
-        let attitude = p.motion.rotation(t) * body.attitude;
+        let attitude = p.motion.rotation(t) * self.body.attitude;
         let snapshot = Snapshot {
             field: soft
-                * (attitude.inverse() * earth + avionics_field + p.interference.field_ut(t))
-                + hard,
+                * (attitude.inverse() * self.earth
+                    + self.avionics_field
+                    + p.interference.field_ut(t))
+                + self.hard,
             dist,
-            sd: Vec3::from(p.noise.sd_ut(total_a, throttle)),
+            sd: Vec3::from(p.noise.sd_ut(self.total_a, throttle)),
         };
-        if history.len() > delay_steps {
-            history.pop_front();
+        if self.history.len() > self.delay_steps {
+            self.history.pop_front();
         }
-        history.push_back(snapshot);
+        self.history.push_back(snapshot);
 
-        if t + 1e-9 >= next_sample as f64 * sample_every {
-            next_sample += 1;
+        if t + 1e-9 >= self.next_sample as f64 * self.sample_every {
+            self.next_sample += 1;
             // The oldest entry is `delay_steps` old (or the first state, early in the run).
-            let seen = history[0];
+            let seen = self.history[0];
+            let noise_rng = &mut self.noise_rng;
             let noise =
                 Vec3::from_fn(|a, _| seen.sd[a] * noise_rng.sample::<f64, _>(StandardNormal));
+            let rec = &mut self.rec;
             rec.t_s.push(t);
-            for (m, c) in commands.iter().enumerate() {
+            for (m, c) in self.commands.iter().enumerate() {
                 rec.thr[m].push(*c);
             }
             rec.mag_ut
@@ -176,14 +313,14 @@ pub fn simulate_observed(s: &ValidScenario, seed: u64, observer: &mut dyn Observ
                 v.push(voltage);
             }
             if let Some(a) = rec.bat_a.as_mut() {
-                a.push(total_a);
+                a.push(self.total_a);
             }
-            if let (Some(tc), Some(temp_c)) = (rec.temp_c.as_mut(), state_of(&parts, TEMP_C)) {
+            if let (Some(tc), Some(temp_c)) = (rec.temp_c.as_mut(), state_of(&self.parts, TEMP_C)) {
                 tc.push(temp_c);
             }
             if let Some(imu) = rec.imu.as_mut() {
-                imu.acc_mps2.push(body.specific_force_mps2);
-                imu.gyr_rps.push(body.rate_rps);
+                imu.acc_mps2.push(self.body.specific_force_mps2);
+                imu.gyr_rps.push(self.body.rate_rps);
             }
             if let Some(q) = rec.attitude.as_mut() {
                 // The attitude stream is logged with the commands, not with the delayed field.
@@ -197,25 +334,19 @@ pub fn simulate_observed(s: &ValidScenario, seed: u64, observer: &mut dyn Observ
         }
 
         // Advance everything by one step under the commands of time t.
-        for (m, st) in motors.iter_mut().enumerate() {
-            st.step(&p.motors, m, commands[m], voltage, dt);
-            currents[m] = st.current_a;
+        for (m, st) in self.motors.iter_mut().enumerate() {
+            st.step(&p.motors, m, self.commands[m], voltage, self.dt);
+            self.currents[m] = st.current_a;
         }
-        total_a = currents.iter().sum::<f64>() + avionics;
-        supply.step(total_a, dt);
+        self.total_a = self.currents.iter().sum::<f64>() + self.avionics_a;
+        self.supply.step(self.total_a, self.dt);
         let electrical = Electrical {
-            total_a,
+            total_a: self.total_a,
             voltage_v: voltage,
         };
-        for part in parts.iter_mut() {
-            part.step(electrical, dt);
+        for part in self.parts.iter_mut() {
+            part.step(electrical, self.dt);
         }
-        body = stand.step(&p.motors, &motors);
-
-        if k % progress_every == 0 {
-            observer.progress(t, duration);
-        }
+        world.apply(self.handle, &p.motors, &self.motors);
     }
-    observer.progress(duration, duration);
-    rec
 }

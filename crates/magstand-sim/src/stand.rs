@@ -170,83 +170,102 @@ impl Mount {
     }
 }
 
-/// The frame on its mount.
-pub struct Stand {
-    world: Option<PhysicsWorld>,
-    body: RigidBodyHandle,
+/// Identifies one stand in a [`StandWorld`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub struct StandHandle(usize);
+
+/// One frame on its mount, as the world keeps it.
+struct StandBody {
+    /// `None` for a disabled stand: perfectly rigid and still, no rapier body.
+    body: Option<RigidBodyHandle>,
     rest: UnitQuaternion<f64>,
     layout: Vec<(Vec3, f64)>,
     mount: Mount,
     previous_velocity: Vec3,
+}
+
+/// Several restrained stands in one rapier3d world, stepped together.
+///
+/// rapier's per-step cost is almost all fixed pipeline work (island and solver bookkeeping),
+/// about 1.9 µs for one body and about 0.2 µs for each further one: the runs of a study share
+/// one world so that one pipeline step serves them all. The stands carry no colliders and no
+/// joints, so they never interact, and each body's state is the same, bit for bit, whatever else
+/// is in the world (`simulate_batch`'s tests hold it to that).
+pub struct StandWorld {
+    world: Option<PhysicsWorld>,
+    stands: Vec<StandBody>,
     dt_s: f64,
 }
 
-impl Stand {
-    /// Builds the body and its mount.
-    pub fn new(p: &StandParams, motors: &MotorParams, dt_s: f64) -> Self {
-        let rest = p.rest_attitude();
-        let layout = motor_layout(motors);
-        if !p.enabled {
-            return Self {
-                world: None,
-                body: RigidBodyHandle::invalid(),
-                rest,
-                layout,
-                mount: Mount::new(p),
-                previous_velocity: Vec3::zeros(),
-                dt_s,
-            };
-        }
-        let mut world = PhysicsWorld::new();
-        world.gravity = Vector::new(0.0, 0.0, GRAVITY_MPS2);
-        world.integration_parameters.dt = dt_s;
-        // One body, no contacts and no constraints: one solver pass, and CCD has nothing to do.
-        world.integration_parameters.num_solver_iterations = 1;
-        world.integration_parameters.max_ccd_substeps = 0;
-        let w = std::f64::consts::TAU * p.mount_frequency_hz;
-        let inertia = to_glam(Vec3::from(p.inertia_kg_m2));
-        let body = world.insert_body(
-            RigidBodyBuilder::dynamic()
-                // Start at the static sag m g / k so the run does not begin with a bounce.
-                .translation(Vector::new(0.0, 0.0, GRAVITY_MPS2 / (w * w)))
-                .rotation(to_glam(rest.scaled_axis()))
-                .additional_mass_properties(MassProperties::new(Vector::ZERO, p.mass_kg, inertia))
-                .can_sleep(false),
-        );
+impl StandWorld {
+    /// An empty world stepping `dt_s` seconds at a time.
+    pub fn new(dt_s: f64) -> Self {
         Self {
-            world: Some(world),
-            body,
-            rest,
-            layout,
-            mount: Mount::new(p),
-            previous_velocity: Vec3::zeros(),
+            world: None,
+            stands: Vec::new(),
             dt_s,
         }
     }
 
-    /// Applies the motors' forces and torques for one step and advances the body.
-    pub fn step(&mut self, motors: &MotorParams, states: &[MotorState]) -> BodyState {
-        let Some(world) = self.world.as_mut() else {
-            return BodyState {
-                attitude: self.rest,
-                specific_force_mps2: self.rest.inverse() * Vec3::new(0.0, 0.0, -GRAVITY_MPS2),
-                rate_rps: Vec3::zeros(),
-            };
+    /// Adds a stand at rest, its body at the static sag of its mount.
+    pub fn add(&mut self, p: &StandParams, motors: &MotorParams) -> StandHandle {
+        let rest = p.rest_attitude();
+        let body = p.enabled.then(|| {
+            let world = self.world.get_or_insert_with(|| {
+                let mut world = PhysicsWorld::new();
+                world.gravity = Vector::new(0.0, 0.0, GRAVITY_MPS2);
+                world.integration_parameters.dt = self.dt_s;
+                // No contacts and no constraints: one solver pass, and CCD has nothing to do.
+                world.integration_parameters.num_solver_iterations = 1;
+                world.integration_parameters.max_ccd_substeps = 0;
+                world
+            });
+            let w = std::f64::consts::TAU * p.mount_frequency_hz;
+            let inertia = to_glam(Vec3::from(p.inertia_kg_m2));
+            world.insert_body(
+                RigidBodyBuilder::dynamic()
+                    // Start at the static sag m g / k so the run does not begin with a bounce.
+                    .translation(Vector::new(0.0, 0.0, GRAVITY_MPS2 / (w * w)))
+                    .rotation(to_glam(rest.scaled_axis()))
+                    .additional_mass_properties(MassProperties::new(
+                        Vector::ZERO,
+                        p.mass_kg,
+                        inertia,
+                    ))
+                    .can_sleep(false),
+            )
+        });
+        self.stands.push(StandBody {
+            body,
+            rest,
+            layout: motor_layout(motors),
+            mount: Mount::new(p),
+            previous_velocity: Vec3::zeros(),
+        });
+        StandHandle(self.stands.len() - 1)
+    }
+
+    /// Sets the motors' forces and torques on stand `h` for the next step (they replace the
+    /// previous step's).
+    pub fn apply(&mut self, h: StandHandle, motors: &MotorParams, states: &[MotorState]) {
+        let stand = &self.stands[h.0];
+        let (Some(world), Some(body)) = (self.world.as_mut(), stand.body) else {
+            return;
         };
-        let b = &mut world.bodies[self.body];
+        let b = &mut world.bodies[body];
         let q = quat_from_glam(b.rotation());
         let origin = from_glam(b.translation());
         b.reset_forces(false);
         b.reset_torques(false);
-        let (mount_force, mount_torque) = self.mount.reaction(
+        let (mount_force, mount_torque) = stand.mount.reaction(
             origin,
             from_glam(b.linvel()),
-            &(self.rest.inverse() * q),
+            &(stand.rest.inverse() * q),
             q.inverse() * from_glam(b.angvel()),
         );
         b.add_force(to_glam(mount_force), false);
         b.add_torque(to_glam(q * mount_torque), false);
-        for (m, ((arm, spin), s)) in self.layout.iter().zip(states).enumerate() {
+        for (m, ((arm, spin), s)) in stand.layout.iter().zip(states).enumerate() {
             let w = s.speed_rad_s;
             // Thrust pushes up (body -z); the rotor's imbalance force turns with it.
             let imbalance = motors.imbalance_kg_m
@@ -261,12 +280,31 @@ impl Stand {
                 false,
             );
         }
-        world.step();
-        let b = &world.bodies[self.body];
+    }
+
+    /// Advances every stand by one step.
+    pub fn step(&mut self) {
+        if let Some(world) = self.world.as_mut() {
+            world.step();
+        }
+    }
+
+    /// The state stand `h` reached in the last step.
+    pub fn state(&mut self, h: StandHandle) -> BodyState {
+        let dt_s = self.dt_s;
+        let stand = &mut self.stands[h.0];
+        let (Some(world), Some(body)) = (self.world.as_ref(), stand.body) else {
+            return BodyState {
+                attitude: stand.rest,
+                specific_force_mps2: stand.rest.inverse() * Vec3::new(0.0, 0.0, -GRAVITY_MPS2),
+                rate_rps: Vec3::zeros(),
+            };
+        };
+        let b = &world.bodies[body];
         let attitude = quat_from_glam(b.rotation());
         let velocity = from_glam(b.linvel());
-        let accel = (velocity - self.previous_velocity) / self.dt_s;
-        self.previous_velocity = velocity;
+        let accel = (velocity - stand.previous_velocity) / dt_s;
+        stand.previous_velocity = velocity;
         let gravity = Vec3::new(0.0, 0.0, GRAVITY_MPS2);
         BodyState {
             attitude,
@@ -275,9 +313,39 @@ impl Stand {
         }
     }
 
+    /// Takes stand `h`'s body out of the world (its run is over); its handle stays valid and
+    /// reads the rest state from then on.
+    pub fn remove(&mut self, h: StandHandle) {
+        if let (Some(world), Some(body)) = (self.world.as_mut(), self.stands[h.0].body.take()) {
+            world.remove_body(body);
+        }
+    }
+}
+
+/// The frame on its mount: a world of one stand.
+pub struct Stand {
+    world: StandWorld,
+    handle: StandHandle,
+}
+
+impl Stand {
+    /// Builds the body and its mount.
+    pub fn new(p: &StandParams, motors: &MotorParams, dt_s: f64) -> Self {
+        let mut world = StandWorld::new(dt_s);
+        let handle = world.add(p, motors);
+        Self { world, handle }
+    }
+
+    /// Applies the motors' forces and torques for one step and advances the body.
+    pub fn step(&mut self, motors: &MotorParams, states: &[MotorState]) -> BodyState {
+        self.world.apply(self.handle, motors, states);
+        self.world.step();
+        self.world.state(self.handle)
+    }
+
     /// Rotation of the body away from its rest attitude, radians.
     pub fn tilt_from_rest(&self, state: &BodyState) -> f64 {
-        (self.rest.inverse() * state.attitude).angle()
+        (self.world.stands[self.handle.0].rest.inverse() * state.attitude).angle()
     }
 }
 

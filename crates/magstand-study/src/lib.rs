@@ -87,6 +87,10 @@ pub struct StudyResult {
     pub outcomes: Vec<MethodOutcome>,
 }
 
+/// Most runs simulated together in one rapier world. Past a few dozen stands the pipeline's
+/// fixed cost is spread thin, and a larger batch only delays the first progress report.
+pub const MAX_BATCH_RUNS: usize = 16;
+
 /// Runs a study on `threads` worker threads (all cores when `None`).
 pub fn run_study(
     study: &ValidStudy,
@@ -109,17 +113,25 @@ pub fn run_study(
         .map_err(|e| StudyError::Threads(e.to_string()))?;
     let runs: Vec<usize> = study.run_indices().collect();
     let done = AtomicUsize::new(0);
-    let per_run: Vec<Result<Vec<MethodOutcome>, StudyError>> = pool.install(|| {
-        runs.par_iter()
-            .map(|&r| {
-                let out = run::run_one(study, r);
-                observer.run_finished(done.fetch_add(1, Ordering::Relaxed) + 1, runs.len());
+    // Runs share a rapier world in batches (one pipeline step serves all their stands); a run's
+    // outcome does not depend on its batch, so the batch size may follow the thread count.
+    let batch = runs
+        .len()
+        .div_ceil(pool.current_num_threads())
+        .clamp(1, MAX_BATCH_RUNS);
+    let per_batch: Vec<Vec<Result<Vec<MethodOutcome>, StudyError>>> = pool.install(|| {
+        runs.par_chunks(batch)
+            .map(|chunk| {
+                let out = run::run_batch(study, chunk);
+                for _ in chunk {
+                    observer.run_finished(done.fetch_add(1, Ordering::Relaxed) + 1, runs.len());
+                }
                 out
             })
             .collect()
     });
     let mut outcomes = Vec::with_capacity(runs.len() * study.methods().len());
-    for r in per_run {
+    for r in per_batch.into_iter().flatten() {
         outcomes.extend(r?);
     }
     Ok(StudyResult {

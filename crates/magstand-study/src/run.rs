@@ -86,17 +86,64 @@ pub fn identification_series(
 
 /// Runs run `run` of the study.
 pub fn run_one(study: &ValidStudy, run: usize) -> Result<Vec<MethodOutcome>, StudyError> {
-    let (seed, _, ident) = identification_series(study, run)?;
-    let (_, valid_s) = run_scenarios(study, seed)?;
-    let valid = magstand_sim::simulate(&valid_s, derive_seed(seed, 0x7A11D));
+    run_batch(study, &[run]).pop().expect("one run in, one out")
+}
+
+/// Runs several runs of the study, their stands simulated together in one rapier world
+/// ([`magstand_sim::simulate_batch`]); each run's outcome is the same as [`run_one`]'s.
+pub fn run_batch(
+    study: &ValidStudy,
+    runs: &[usize],
+) -> Vec<Result<Vec<MethodOutcome>, StudyError>> {
+    let mut prepared = Vec::with_capacity(runs.len());
+    let mut series = Vec::with_capacity(2 * runs.len());
+    for &run in runs {
+        let seed = derive_seed(study.config.seed, run as u64);
+        match run_scenarios(study, seed) {
+            Ok(pair) => {
+                prepared.push(Ok(seed));
+                series.push((pair, seed));
+            }
+            Err(e) => prepared.push(Err(e)),
+        }
+    }
+    let stands: Vec<(&ValidScenario, u64)> = series
+        .iter()
+        .flat_map(|((ident_s, valid_s), seed)| {
+            [(ident_s, *seed), (valid_s, derive_seed(*seed, 0x7A11D))]
+        })
+        .collect();
+    let mut recordings = magstand_sim::simulate_batch(&stands).into_iter();
+    runs.iter()
+        .zip(prepared)
+        .map(|(&run, seed)| {
+            let seed = seed?;
+            let (ident, valid) = (
+                recordings.next().expect("an identification series per run"),
+                recordings.next().expect("a validation series per run"),
+            );
+            Ok(judge(study, run, seed, &ident, &valid))
+        })
+        .collect()
+}
+
+/// Fits every method on run `run`'s identification series and judges it on the validation
+/// series.
+fn judge(
+    study: &ValidStudy,
+    run: usize,
+    seed: u64,
+    ident: &Recording,
+    valid: &Recording,
+) -> Vec<MethodOutcome> {
     let needs_bound = study.methods.iter().any(|m| m.fixed_structure);
     let bound = if needs_bound {
-        crlb::fixed_structure_bound(&ident)
+        crlb::fixed_structure_bound(ident)
     } else {
         None
     };
     let origin = format!("run {run} identification series");
-    Ok(study
+    study
         .methods
         .iter()
         .map(|m| {
@@ -104,15 +151,15 @@ pub fn run_one(study: &ValidStudy, run: usize) -> Result<Vec<MethodOutcome>, Stu
                 magstand_ident::methods::Fitter::Config(config) => config
                     .clone()
                     .check()
-                    .and_then(|c| c.fit_recording(&ident, &origin))
+                    .and_then(|c| c.fit_recording(ident, &origin))
                     .map_err(|e| e.to_string())
                     .and_then(|model| {
-                        let predicted = model.dist_column(&valid);
+                        let predicted = model.dist_column(valid);
                         within_range(figures(
                             &predicted,
                             Vec3::from(model.reference_ut),
                             Some(&model),
-                            &valid,
+                            valid,
                             if m.fixed_structure {
                                 bound.as_ref()
                             } else {
@@ -120,8 +167,8 @@ pub fn run_one(study: &ValidStudy, run: usize) -> Result<Vec<MethodOutcome>, Stu
                             },
                         ))
                     }),
-                other => physics_family(other, &ident, &origin, &valid)
-                    .and_then(|(dist, r)| within_range(figures(&dist, r, None, &valid, None))),
+                other => physics_family(other, ident, &origin, valid)
+                    .and_then(|(dist, r)| within_range(figures(&dist, r, None, valid, None))),
             };
             let (error, figures) = match judged {
                 Ok(f) => (None, Some(f)),
@@ -135,7 +182,7 @@ pub fn run_one(study: &ValidStudy, run: usize) -> Result<Vec<MethodOutcome>, Stu
                 figures,
             }
         })
-        .collect())
+        .collect()
 }
 
 /// The figures, or why the run counts as failed: a figure beyond
