@@ -88,6 +88,25 @@ pub fn fit(
     use_row: &dyn Fn(usize) -> bool,
     weight: &dyn Fn(usize) -> Vec3,
 ) -> Result<LocalLinearNet, IdentError> {
+    fit_weighted_rows(
+        data,
+        partition,
+        estimation,
+        (0..data.len())
+            .filter(|&k| use_row(k))
+            .map(|k| (data.u[k], data.regressors(k), data.y[k], weight(k))),
+    )
+}
+
+/// Fits the network on weighted rows `(u, regressors, y, weight per axis)`. A row may stand
+/// for several of equal input and regressors: its weight is then their weights' sum and its
+/// `y` their weighted mean, which gives the same normal equations.
+pub(crate) fn fit_weighted_rows<'r>(
+    data: &Dataset,
+    partition: &RbfPartition,
+    estimation: Estimation,
+    rows: impl Iterator<Item = (f64, &'r [f64], Vec3, Vec3)>,
+) -> Result<LocalLinearNet, IdentError> {
     let m = partition.len();
     let p = data.spec.regressor_count();
     let mut phi = vec![0.0; m];
@@ -96,12 +115,8 @@ pub fn fit(
             let mut ne: Vec<[NormalEquations; 3]> = (0..m)
                 .map(|_| std::array::from_fn(|_| NormalEquations::new(p, 1)))
                 .collect();
-            for k in 0..data.len() {
-                if !use_row(k) {
-                    continue;
-                }
-                partition.weights_into(data.u[k], &mut phi);
-                let (x, y, w) = (data.regressors(k), data.y[k], weight(k));
+            for (u, x, y, w) in rows {
+                partition.weights_into(u, &mut phi);
                 for i in 0..m {
                     for a in 0..3 {
                         ne[i][a].add(x, &[y[a]], phi[i] * w[a]);
@@ -127,12 +142,8 @@ pub fn fit(
             // the model's own rows add, and skipping it makes a row cost the few models near
             // it rather than all of them.
             let (mut cols, mut z) = (Vec::with_capacity(m * p), Vec::with_capacity(m * p));
-            for k in 0..data.len() {
-                if !use_row(k) {
-                    continue;
-                }
-                partition.weights_into(data.u[k], &mut phi);
-                let (x, y, w) = (data.regressors(k), data.y[k], weight(k));
+            for (u, x, y, w) in rows {
+                partition.weights_into(u, &mut phi);
                 cols.clear();
                 z.clear();
                 for i in (0..m).filter(|&i| phi[i] >= MIN_MEMBERSHIP) {
