@@ -132,7 +132,8 @@ struct Run<'a> {
     dt: f64,
     duration_s: f64,
     steps: usize,
-    sample_every: f64,
+    /// Whether step k records a sample (the magnetometer's data rate on the physics grid).
+    sample_at: Vec<bool>,
     delay_steps: usize,
     gains: WiringGains,
     tables: [LocalLinear1d; 3],
@@ -146,14 +147,20 @@ struct Run<'a> {
     parts: Vec<Box<dyn StandModule>>,
     handle: StandHandle,
     body: BodyState,
-    history: VecDeque<Snapshot>,
+    /// The snapshots samples will still read, with their step.
+    history: VecDeque<(usize, Snapshot)>,
     rec: Recording,
     commands: Vec<f64>,
     currents: Vec<f64>,
     avionics_a: f64,
     total_a: f64,
     avionics_field: Vec3,
-    next_sample: usize,
+    /// Each module's field at the sensor at the current step.
+    module_fields: Vec<Vec3>,
+    /// Whether the alternating interference field is on.
+    interference_on: bool,
+    /// The motors' lag factor per step.
+    spinup_alpha: f64,
 }
 
 impl<'a> Run<'a> {
@@ -185,6 +192,15 @@ impl<'a> Run<'a> {
         world.apply(handle, &p.motors, &motors);
         let delay_steps = (p.logging.mag_delay_s / dt).round() as usize;
         let rows_hint = (duration_s / sample_every) as usize + 2;
+        let steps = (duration_s / dt).round() as usize;
+        let mut sample_at = vec![false; steps];
+        let mut next_sample = 0usize;
+        for (k, at) in sample_at.iter_mut().enumerate() {
+            if k as f64 * dt + 1e-9 >= next_sample as f64 * sample_every {
+                next_sample += 1;
+                *at = true;
+            }
+        }
         let rec = Recording {
             thr: vec![Vec::with_capacity(rows_hint); n_motors],
             bat_v: p.logging.record_power.then(Vec::new),
@@ -201,8 +217,8 @@ impl<'a> Run<'a> {
             program,
             dt,
             duration_s,
-            steps: (duration_s / dt).round() as usize,
-            sample_every,
+            steps,
+            sample_at,
             delay_steps,
             avionics_field: gains.total_ut_per_a * avionics_a,
             gains,
@@ -215,6 +231,7 @@ impl<'a> Run<'a> {
             noise_rng: stream_rng(seed, Stream::Noise),
             supply: SupplyState::default(),
             parts: modules(p),
+            module_fields: vec![Vec3::zeros(); modules(p).len()],
             handle,
             body: BodyState {
                 attitude: p.stand.rest_attitude(),
@@ -227,7 +244,8 @@ impl<'a> Run<'a> {
             currents: vec![0.0; n_motors],
             avionics_a,
             total_a: avionics_a,
-            next_sample: 0,
+            interference_on: p.interference.amplitude_ut.iter().any(|a| *a != 0.0),
+            spinup_alpha: p.motors.spinup_alpha(dt),
         }
     }
 
@@ -246,59 +264,72 @@ impl<'a> Run<'a> {
         let throttle = self.commands.iter().sum::<f64>() / n_motors as f64;
         let voltage = self.supply.voltage_v(&p.supply, self.total_a);
         let soft = self.soft;
-
-        // What the sensor sees now, from the state reached at time t.
-        let motor_field = match p.disturbance.source {
-            // The avionics current flows with the motors off too: its field is part of m, and
-            // only what the motors add is the disturbance (eq. 9).
-            DisturbanceSource::Wiring => {
-                soft * self
-                    .gains
-                    .field_ut(self.total_a - self.avionics_a, &self.currents)
-            }
-            DisturbanceSource::PaperTables => {
-                // Tables I-III give the deviation in gauss of the commanded overall throttle;
-                // eq. 9 makes it zero with the motors off.
-                let d = |a: usize| {
-                    (self.tables[a].eval(throttle) - self.tables_at_zero[a])
-                        * UT_PER_GAUSS
-                        * p.disturbance.scale
-                };
-                Vec3::new(d(0), d(1), d(2))
-            }
-        };
         let electrical = Electrical {
             total_a: self.total_a,
             voltage_v: voltage,
         };
-        let mut dist = motor_field;
-        for part in self.parts.iter_mut() {
+        // A module's field is taken at every step, read or not: a play operator's state
+        // follows every current it is fed.
+        for (part, field) in self.parts.iter_mut().zip(self.module_fields.iter_mut()) {
             let f = part.field_ut(electrical);
-            dist += if part.through_soft_iron() {
+            *field = if part.through_soft_iron() {
                 soft * f
             } else {
                 f
             };
         }
-        let attitude = p.motion.rotation(t) * self.body.attitude;
-        let snapshot = Snapshot {
-            field: soft
-                * (attitude.inverse() * self.earth
-                    + self.avionics_field
-                    + p.interference.field_ut(t))
-                + self.hard,
-            dist,
-            sd: Vec3::from(p.noise.sd_ut(self.total_a, throttle)),
+        let is_sample = self.sample_at[k];
+        // What the sensor sees now, from the state reached at time t: needed only at the
+        // steps a sample will read (`mag_delay_s` earlier than the sample, or the first).
+        let needed = k == 0 || self.sample_at.get(k + self.delay_steps) == Some(&true);
+        let attitude = if p.motion.is_on() {
+            p.motion.rotation(t) * self.body.attitude
+        } else {
+            self.body.attitude
         };
-        if self.history.len() > self.delay_steps {
-            self.history.pop_front();
+        if needed {
+            let motor_field = match p.disturbance.source {
+                // The avionics current flows with the motors off too: its field is part of
+                // m, and only what the motors add is the disturbance (eq. 9).
+                DisturbanceSource::Wiring => {
+                    soft * self
+                        .gains
+                        .field_ut(self.total_a - self.avionics_a, &self.currents)
+                }
+                DisturbanceSource::PaperTables => {
+                    // Tables I-III give the deviation in gauss of the commanded overall
+                    // throttle; eq. 9 makes it zero with the motors off.
+                    let d = |a: usize| {
+                        (self.tables[a].eval(throttle) - self.tables_at_zero[a])
+                            * UT_PER_GAUSS
+                            * p.disturbance.scale
+                    };
+                    Vec3::new(d(0), d(1), d(2))
+                }
+            };
+            let mut outside = attitude.inverse() * self.earth + self.avionics_field;
+            if self.interference_on {
+                outside += p.interference.field_ut(t);
+            }
+            let mut dist = motor_field;
+            for f in &self.module_fields {
+                dist += f;
+            }
+            let snapshot = Snapshot {
+                field: soft * outside + self.hard,
+                dist,
+                sd: Vec3::from(p.noise.sd_ut(self.total_a, throttle)),
+            };
+            self.history.push_back((k, snapshot));
         }
-        self.history.push_back(snapshot);
 
-        if t + 1e-9 >= self.next_sample as f64 * self.sample_every {
-            self.next_sample += 1;
-            // The oldest entry is `delay_steps` old (or the first state, early in the run).
-            let seen = self.history[0];
+        if is_sample {
+            // The state of `delay_steps` ago (or the first state, early in the run).
+            let target = k.saturating_sub(self.delay_steps);
+            while self.history.front().is_some_and(|(j, _)| *j < target) {
+                self.history.pop_front();
+            }
+            let seen = self.history[0].1;
             let noise_rng = &mut self.noise_rng;
             let noise =
                 Vec3::from_fn(|a, _| seen.sd[a] * noise_rng.sample::<f64, _>(StandardNormal));
@@ -335,7 +366,14 @@ impl<'a> Run<'a> {
 
         // Advance everything by one step under the commands of time t.
         for (m, st) in self.motors.iter_mut().enumerate() {
-            st.step(&p.motors, m, self.commands[m], voltage, self.dt);
+            st.step_with_alpha(
+                &p.motors,
+                m,
+                self.commands[m],
+                voltage,
+                self.dt,
+                self.spinup_alpha,
+            );
             self.currents[m] = st.current_a;
         }
         self.total_a = self.currents.iter().sum::<f64>() + self.avionics_a;

@@ -263,23 +263,22 @@ impl StandWorld {
             &(stand.rest.inverse() * q),
             q.inverse() * from_glam(b.angvel()),
         );
-        b.add_force(to_glam(mount_force), false);
-        b.add_torque(to_glam(q * mount_torque), false);
+        // The rotors' forces and torques summed in the body frame and turned into the world
+        // once: a force f at arm r adds r x f about the centre of mass (the body's origin).
+        let (mut force_body, mut torque_body) = (Vec3::zeros(), mount_torque);
         for (m, ((arm, spin), s)) in stand.layout.iter().zip(states).enumerate() {
             let w = s.speed_rad_s;
             // Thrust pushes up (body -z); the rotor's imbalance force turns with it.
-            let imbalance = motors.imbalance_kg_m
-                * w
-                * w
-                * Vec3::new(s.angle_rad.cos(), s.angle_rad.sin(), 0.0);
+            let (sin, cos) = s.angle_rad.sin_cos();
+            let imbalance = motors.imbalance_kg_m * w * w * Vec3::new(cos, sin, 0.0);
             let force = Vec3::new(0.0, 0.0, -motors.thrust(w)) + imbalance;
-            b.add_force_at_point(to_glam(q * force), to_glam(origin + q * arm), false);
+            force_body += force;
             // Drag on a rotor spinning +spin about body z reacts on the frame with -spin.
-            b.add_torque(
-                to_glam(q * Vec3::new(0.0, 0.0, -spin * motors.drag_torque(m, w))),
-                false,
-            );
+            torque_body +=
+                arm.cross(&force) + Vec3::new(0.0, 0.0, -spin * motors.drag_torque(m, w));
         }
+        b.add_force(to_glam(mount_force + q * force_body), false);
+        b.add_torque(to_glam(q * torque_body), false);
     }
 
     /// Advances every stand by one step.
