@@ -136,6 +136,9 @@ pub struct Dataset {
     pub reference_ut: Vec3,
     /// Rows with all motors off.
     pub off_rows: usize,
+    /// Rows of equal input and regressors, indexed on first use ([`crate::row_groups`]); the
+    /// rows' `u` and `x` must not change after it.
+    groups: std::sync::OnceLock<std::sync::Arc<crate::row_groups::GroupIndex>>,
 }
 
 /// A row counts as motors-off when every command is at most this.
@@ -275,7 +278,15 @@ impl Dataset {
             t_s: rec.t_s.clone(),
             reference_ut,
             off_rows: off.len(),
+            groups: std::sync::OnceLock::new(),
         })
+    }
+
+    /// Which rows share their input and regressors exactly, indexed once per dataset.
+    pub fn group_index(&self) -> std::sync::Arc<crate::row_groups::GroupIndex> {
+        self.groups
+            .get_or_init(|| std::sync::Arc::new(crate::row_groups::GroupIndex::of(self)))
+            .clone()
     }
 
     /// Number of rows.

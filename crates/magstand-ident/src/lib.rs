@@ -58,6 +58,7 @@ pub mod methods;
 pub mod metrics;
 mod model;
 pub mod noise_model;
+pub mod row_groups;
 pub mod structure;
 
 pub use config::{

@@ -282,8 +282,18 @@ impl Model {
     pub fn residuals(&self, data: &crate::Dataset) -> Vec<Vec3> {
         let mut s = self.scratch();
         let off = self.off_output(&mut s);
+        // Rows of equal input and regressors have equal outputs: one evaluation per group.
+        let index = data.group_index();
+        let fitted: Vec<Vec3> = index
+            .first_row
+            .iter()
+            .map(|&k| {
+                let k = k as usize;
+                self.output(data.u[k], data.regressors(k), &mut s.phi) - off
+            })
+            .collect();
         (0..data.len())
-            .map(|k| data.y[k] - (self.output(data.u[k], data.regressors(k), &mut s.phi) - off))
+            .map(|k| data.y[k] - fitted[index.of_row[k] as usize])
             .collect()
     }
 

@@ -57,15 +57,11 @@ impl SdModel {
                 continue;
             }
             used += 1;
+            // A row touches at most two knots (ascending): only those enter the sums.
             let m = hat(&knots, ui, &mut h);
-            for &(k, w) in &h[..m] {
-                row[k] = w;
-            }
+            let (cols, vals) = ([h[0].0, h[1].0], [h[0].1, h[1].1]);
             let sq = ri.component_mul(ri);
-            ne.add(&row, &[sq.x, sq.y, sq.z], 1.0);
-            for &(k, _) in &h[..m] {
-                row[k] = 0.0;
-            }
+            ne.add_sparse(&cols[..m], &vals[..m], &[sq.x, sq.y, sq.z], 1.0);
         }
         if used < 2 {
             return None;

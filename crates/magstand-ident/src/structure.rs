@@ -16,7 +16,8 @@ use magstand_core::rbf::RbfPartition;
 
 use crate::IdentError;
 use crate::dataset::Dataset;
-use crate::local_linear::{Estimation, LocalLinearNet, fit_weighted_rows};
+use crate::local_linear::Estimation;
+use crate::row_groups::Groups;
 
 /// Standard deviation of each RBF as a fraction of its interval's width.
 pub const SIGMA_FRACTION: f64 = 0.35;
@@ -38,128 +39,6 @@ pub const MAX_CHOICE_ROWS: usize = 50_000;
 
 /// Number of input bins over which residuals are averaged.
 pub const BINS: usize = 50;
-
-/// Rows of equal input and regressors, summed. The search scans each group once per candidate
-/// structure instead of each row: a stair holds a few dozen distinct commands over thousands
-/// of rows. Sums of rows give the same normal equations and residual sums as the rows.
-struct Groups {
-    /// Input of each group, ascending.
-    u: Vec<f64>,
-    /// Regressors, [`crate::InputSpec::regressor_count`] per group.
-    x: Vec<f64>,
-    /// Rows in each group.
-    n: Vec<usize>,
-    /// Sum of the rows' weights per axis.
-    w: Vec<Vec3>,
-    /// Weighted mean deviation per axis (zero where the weight is).
-    y_w: Vec<Vec3>,
-    /// Sum of the rows' deviations.
-    y_sum: Vec<Vec3>,
-    p: usize,
-}
-
-impl Groups {
-    /// The groups of the rows `rows` selects, weighted by `weight`.
-    fn of(data: &Dataset, rows: &dyn Fn(usize) -> bool, weight: &dyn Fn(usize) -> Vec3) -> Self {
-        let p = data.spec.regressor_count();
-        let mut order: Vec<usize> = (0..data.len()).filter(|&k| rows(k)).collect();
-        let key = |k: usize| (data.u[k], data.regressors(k));
-        order.sort_by(|&a, &b| {
-            let ((ua, xa), (ub, xb)) = (key(a), key(b));
-            ua.total_cmp(&ub).then_with(|| {
-                xa.iter()
-                    .zip(xb)
-                    .map(|(p, q)| p.total_cmp(q))
-                    .find(|o| o.is_ne())
-                    .unwrap_or(std::cmp::Ordering::Equal)
-            })
-        });
-        let mut g = Groups {
-            u: Vec::new(),
-            x: Vec::new(),
-            n: Vec::new(),
-            w: Vec::new(),
-            y_w: Vec::new(),
-            y_sum: Vec::new(),
-            p,
-        };
-        let mut wy: Vec<Vec3> = Vec::new();
-        let mut last: Option<usize> = None;
-        for k in order {
-            let same = last.is_some_and(|l| {
-                data.u[l].to_bits() == data.u[k].to_bits()
-                    && data
-                        .regressors(l)
-                        .iter()
-                        .zip(data.regressors(k))
-                        .all(|(a, b)| a.to_bits() == b.to_bits())
-            });
-            if !same {
-                g.u.push(data.u[k]);
-                g.x.extend_from_slice(data.regressors(k));
-                g.n.push(0);
-                g.w.push(Vec3::zeros());
-                g.y_sum.push(Vec3::zeros());
-                wy.push(Vec3::zeros());
-                last = Some(k);
-            }
-            let (w, y) = (weight(k), data.y[k]);
-            let i = g.u.len() - 1;
-            g.n[i] += 1;
-            g.w[i] += w;
-            wy[i] += w.component_mul(&y);
-            g.y_sum[i] += y;
-        }
-        g.y_w = wy
-            .iter()
-            .zip(&g.w)
-            .map(|(wy, w)| Vec3::from_fn(|a, _| if w[a] > 0.0 { wy[a] / w[a] } else { 0.0 }))
-            .collect();
-        g
-    }
-
-    fn len(&self) -> usize {
-        self.u.len()
-    }
-
-    fn regressors(&self, i: usize) -> &[f64] {
-        &self.x[i * self.p..(i + 1) * self.p]
-    }
-
-    /// Fits the network on the groups.
-    fn fit(
-        &self,
-        data: &Dataset,
-        partition: &RbfPartition,
-        estimation: Estimation,
-    ) -> Result<LocalLinearNet, IdentError> {
-        fit_weighted_rows(
-            data,
-            partition,
-            estimation,
-            (0..self.len()).map(|i| (self.u[i], self.regressors(i), self.y_w[i], self.w[i])),
-        )
-    }
-
-    /// Per-bin residual sums and row counts.
-    fn binned_residuals(
-        &self,
-        net: &LocalLinearNet,
-        lo: f64,
-        hi: f64,
-        phi: &mut [f64],
-    ) -> Vec<(Vec3, usize)> {
-        let mut bins = vec![(Vec3::zeros(), 0usize); BINS];
-        let width = (hi - lo).max(1e-12);
-        for i in 0..self.len() {
-            let u = self.u[i];
-            let b = (((u - lo) / width * BINS as f64) as usize).min(BINS - 1);
-            bins[b].0 += self.y_sum[i] - net.eval(u, self.regressors(i), phi) * self.n[i] as f64;
-            bins[b].1 += self.n[i];
-        }
-        bins
-    }
-}
 
 /// Systematic error energy of a bin: `n |mean r|^2`, weighted per axis.
 fn bin_energy((sum, n): (Vec3, usize), w: Vec3) -> f64 {
@@ -197,7 +76,7 @@ pub fn choose(
     loop {
         let partition = partition_of(&intervals);
         let mut phi = vec![0.0; partition.len()];
-        let net = match fit_groups.fit(data, &partition, estimation) {
+        let net = match fit_groups.fit(&partition, estimation) {
             Ok(n) => n,
             // A split that leaves a local model without enough data ends the search.
             Err(e) if best.is_some() => {
@@ -208,7 +87,7 @@ pub fn choose(
         };
         let bin_u = |b: usize| lo + (hi - lo) * (b as f64 + 0.5) / BINS as f64;
         let bin_weight = |b: usize| weight_at(bin_u(b));
-        let scored = score_groups.binned_residuals(&net, lo, hi, &mut phi);
+        let scored = score_groups.binned_residuals(&net, BINS, lo, hi, &mut phi);
         let score: f64 = scored
             .iter()
             .enumerate()
@@ -226,7 +105,7 @@ pub fn choose(
         }
         // Local losses on the fitting rows: each bin's systematic error shared by the models'
         // weights at the bin.
-        let fitted = fit_groups.binned_residuals(&net, lo, hi, &mut phi);
+        let fitted = fit_groups.binned_residuals(&net, BINS, lo, hi, &mut phi);
         let mut loss = vec![0.0; intervals.len()];
         for (b, &x) in fitted.iter().enumerate() {
             let e = bin_energy(x, bin_weight(b));

@@ -1,0 +1,272 @@
+//! Rows of equal input and regressors, taken together.
+//!
+//! A stair-throttle recording holds a few dozen distinct commands over thousands of rows. A
+//! fit's normal equations, a model's residual sums and its predictions depend on a row's input
+//! and regressors only through their values, so rows that share them can be summed first and
+//! the expensive part (the RBF memberships, an exponential per local model) done once per
+//! distinct value. On a recording whose input never repeats, each group is one row.
+use std::sync::Arc;
+
+use magstand_core::Vec3;
+use magstand_core::rbf::RbfPartition;
+
+use crate::IdentError;
+use crate::dataset::Dataset;
+use crate::local_linear::{Estimation, LocalLinearNet, fit_weighted_rows};
+
+/// Which group each row of a dataset belongs to; groups in ascending input.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct GroupIndex {
+    /// Group of each row.
+    pub of_row: Vec<u32>,
+    /// A row of each group (its first in time).
+    pub first_row: Vec<u32>,
+}
+
+impl GroupIndex {
+    /// The index of a dataset's rows by exact (bit for bit) input and regressors.
+    pub fn of(data: &Dataset) -> Self {
+        let n = data.len();
+        let mut order: Vec<u32> = (0..n as u32).collect();
+        let key = |k: u32| (data.u[k as usize], data.regressors(k as usize));
+        order.sort_by(|&a, &b| {
+            let ((ua, xa), (ub, xb)) = (key(a), key(b));
+            ua.total_cmp(&ub)
+                .then_with(|| {
+                    xa.iter()
+                        .zip(xb)
+                        .map(|(p, q)| p.total_cmp(q))
+                        .find(|o| o.is_ne())
+                        .unwrap_or(std::cmp::Ordering::Equal)
+                })
+                .then(a.cmp(&b))
+        });
+        let mut of_row = vec![0u32; n];
+        let mut first_row: Vec<u32> = Vec::new();
+        let same = |a: u32, b: u32| {
+            let ((ua, xa), (ub, xb)) = (key(a), key(b));
+            ua.to_bits() == ub.to_bits()
+                && xa.iter().zip(xb).all(|(p, q)| p.to_bits() == q.to_bits())
+        };
+        for &k in &order {
+            if first_row.last().is_none_or(|&f| !same(f, k)) {
+                first_row.push(k);
+            }
+            of_row[k as usize] = (first_row.len() - 1) as u32;
+        }
+        GroupIndex { of_row, first_row }
+    }
+
+    /// Number of groups.
+    pub fn len(&self) -> usize {
+        self.first_row.len()
+    }
+
+    /// True when there are no rows.
+    pub fn is_empty(&self) -> bool {
+        self.first_row.is_empty()
+    }
+}
+
+/// The index of `data`, computed on first use and kept with the dataset.
+pub(crate) fn index_of(data: &Dataset) -> Arc<GroupIndex> {
+    data.group_index()
+}
+
+/// The rows a fit selects, summed per group of equal input and regressors.
+pub(crate) struct Groups<'d> {
+    data: &'d Dataset,
+    /// Input of each group, ascending.
+    pub u: Vec<f64>,
+    /// A row holding each group's regressors.
+    row: Vec<usize>,
+    /// Rows in each group.
+    pub n: Vec<usize>,
+    /// Sum of the rows' weights per axis.
+    w: Vec<Vec3>,
+    /// Weighted mean deviation per axis (zero where the weight is).
+    y_w: Vec<Vec3>,
+    /// Sum of the rows' deviations.
+    y_sum: Vec<Vec3>,
+}
+
+impl<'d> Groups<'d> {
+    /// The groups of the rows `rows` selects, weighted by `weight`; groups no selected row
+    /// falls in are left out.
+    pub fn of(
+        data: &'d Dataset,
+        rows: &dyn Fn(usize) -> bool,
+        weight: &dyn Fn(usize) -> Vec3,
+    ) -> Self {
+        let index = index_of(data);
+        let g = index.len();
+        let (mut n, mut w, mut wy, mut y_sum) = (
+            vec![0usize; g],
+            vec![Vec3::zeros(); g],
+            vec![Vec3::zeros(); g],
+            vec![Vec3::zeros(); g],
+        );
+        for k in (0..data.len()).filter(|&k| rows(k)) {
+            let i = index.of_row[k] as usize;
+            let (wk, y) = (weight(k), data.y[k]);
+            n[i] += 1;
+            w[i] += wk;
+            wy[i] += wk.component_mul(&y);
+            y_sum[i] += y;
+        }
+        let kept: Vec<usize> = (0..g).filter(|&i| n[i] > 0).collect();
+        Groups {
+            data,
+            u: kept
+                .iter()
+                .map(|&i| data.u[index.first_row[i] as usize])
+                .collect(),
+            row: kept.iter().map(|&i| index.first_row[i] as usize).collect(),
+            y_w: kept
+                .iter()
+                .map(|&i| {
+                    Vec3::from_fn(|a, _| {
+                        if w[i][a] > 0.0 {
+                            wy[i][a] / w[i][a]
+                        } else {
+                            0.0
+                        }
+                    })
+                })
+                .collect(),
+            n: kept.iter().map(|&i| n[i]).collect(),
+            w: kept.iter().map(|&i| w[i]).collect(),
+            y_sum: kept.iter().map(|&i| y_sum[i]).collect(),
+        }
+    }
+
+    /// Number of groups.
+    pub fn len(&self) -> usize {
+        self.u.len()
+    }
+
+    /// Regressors of group `i`.
+    pub fn regressors(&self, i: usize) -> &'d [f64] {
+        self.data.regressors(self.row[i])
+    }
+
+    /// Fits the network on the groups: the same normal equations as on their rows.
+    pub fn fit(
+        &self,
+        partition: &RbfPartition,
+        estimation: Estimation,
+    ) -> Result<LocalLinearNet, IdentError> {
+        fit_weighted_rows(
+            self.data,
+            partition,
+            estimation,
+            (0..self.len()).map(|i| (self.u[i], self.regressors(i), self.y_w[i], self.w[i])),
+        )
+    }
+
+    /// Per-bin residual sums and row counts over `BINS` bins of the input on `lo..hi`.
+    pub fn binned_residuals(
+        &self,
+        net: &LocalLinearNet,
+        bins: usize,
+        lo: f64,
+        hi: f64,
+        phi: &mut [f64],
+    ) -> Vec<(Vec3, usize)> {
+        let mut out = vec![(Vec3::zeros(), 0usize); bins];
+        let width = (hi - lo).max(1e-12);
+        for i in 0..self.len() {
+            let u = self.u[i];
+            let b = (((u - lo) / width * bins as f64) as usize).min(bins - 1);
+            out[b].0 += self.y_sum[i] - net.eval(u, self.regressors(i), phi) * self.n[i] as f64;
+            out[b].1 += self.n[i];
+        }
+        out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::InputKind;
+    use magstand_core::Recording;
+
+    /// A 21-level stair with a curved deviation and a ripple that differs row by row, and a
+    /// stretch of distinct inputs (a ramp) between the levels.
+    fn data() -> Dataset {
+        let mut rec = Recording {
+            thr: vec![vec![]],
+            overall_only: true,
+            ..Default::default()
+        };
+        for k in 0..5000 {
+            let u = if k < 4200 {
+                ((k / 200) as f64 / 20.0).min(1.0)
+            } else {
+                (k - 4200) as f64 / 800.0
+            };
+            rec.t_s.push(k as f64 * 0.01);
+            rec.thr[0].push(u);
+            let ripple = 0.3 * ((k as f64) * 1.7).sin();
+            rec.mag_ut.push(
+                Vec3::new(20.0 + 6.0 * u * u, 1.0 - 3.0 * u, 45.0 + 9.0 * u.powi(3))
+                    + Vec3::repeat(ripple),
+            );
+        }
+        Dataset::from_recording(&rec, InputKind::Throttle, "stair").unwrap()
+    }
+
+    #[test]
+    fn rows_group_by_exact_input_in_ascending_order() {
+        let d = data();
+        let index = GroupIndex::of(&d);
+        // 21 levels, of which the ramp repeats 0 and 1 only at its ends.
+        assert!(
+            index.len() > 21 && index.len() < 21 + 800,
+            "{} groups",
+            index.len()
+        );
+        for k in 0..d.len() {
+            let g = index.of_row[k] as usize;
+            assert_eq!(
+                d.u[k].to_bits(),
+                d.u[index.first_row[g] as usize].to_bits(),
+                "row {k}"
+            );
+        }
+        let firsts: Vec<f64> = index.first_row.iter().map(|&k| d.u[k as usize]).collect();
+        assert!(firsts.windows(2).all(|w| w[0] < w[1]), "{firsts:?}");
+    }
+
+    #[test]
+    fn a_fit_on_groups_equals_the_fit_on_their_rows() {
+        let d = data();
+        let partition = RbfPartition::new(vec![0.0, 0.3, 0.7, 1.0], vec![5.0; 4]).unwrap();
+        let rows = |k: usize| k % 7 != 3;
+        let weight = |k: usize| Vec3::new(1.0 + d.u[k], 2.0, 1.0 / (1.0 + d.u[k]));
+        for estimation in [Estimation::Local, Estimation::Global] {
+            let grouped = Groups::of(&d, &rows, &weight)
+                .fit(&partition, estimation)
+                .unwrap();
+            let by_row = fit_weighted_rows(
+                &d,
+                &partition,
+                estimation,
+                (0..d.len())
+                    .filter(|&k| rows(k))
+                    .map(|k| (d.u[k], d.regressors(k), d.y[k], weight(k))),
+            )
+            .unwrap();
+            for a in 0..3 {
+                for (g, r) in grouped.coefficients[a].iter().zip(&by_row.coefficients[a]) {
+                    for (x, y) in g.iter().zip(r) {
+                        assert!(
+                            (x - y).abs() <= 1e-9 * (1.0 + y.abs()),
+                            "{estimation:?} axis {a}: grouped {g:?} vs by row {r:?}"
+                        );
+                    }
+                }
+            }
+        }
+    }
+}
