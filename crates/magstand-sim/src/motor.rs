@@ -111,26 +111,26 @@ impl MotorParams {
         self.torque_coeff_nms2 * self.load_scale.get(motor).copied().unwrap_or(1.0)
     }
 
+    /// The constants of motor `motor` that its per-step formulas use.
+    pub fn constants(&self, motor: usize) -> MotorConstants {
+        let kt = self.torque_constant();
+        let kq = self.kq(motor);
+        MotorConstants {
+            kt,
+            kq,
+            a: self.winding_resistance_ohm * kq / kt,
+        }
+    }
+
     /// Steady-state rotor speed (rad/s) at `duty` and supply `voltage_v`: the positive root of
     /// `(R kq / Kt) w^2 + Ke w + (R I0 - V duty) = 0`.
     pub fn steady_speed(&self, motor: usize, duty: f64, voltage_v: f64) -> f64 {
-        let kt = self.torque_constant();
-        let r = self.winding_resistance_ohm;
-        let drive = voltage_v.max(0.0) * duty - r * self.idle_current_a;
-        if duty <= 0.0 || drive <= 0.0 {
-            return 0.0;
-        }
-        let a = r * self.kq(motor) / kt;
-        // Stable form of (-b + sqrt(b^2 + 4 a drive)) / 2a for small a.
-        2.0 * drive / (kt + (kt * kt + 4.0 * a * drive).sqrt())
+        self.constants(motor).steady_speed(self, duty, voltage_v)
     }
 
     /// Current (A) drawn by a motor spinning at `speed` while driven.
     pub fn current(&self, motor: usize, speed: f64, driven: bool) -> f64 {
-        if !driven {
-            return 0.0;
-        }
-        self.idle_current_a + self.kq(motor) * speed * speed / self.torque_constant()
+        self.constants(motor).current(self, speed, driven)
     }
 
     /// Thrust (N) at `speed`.
@@ -141,6 +141,38 @@ impl MotorParams {
     /// Propeller drag torque magnitude (N m) at `speed`.
     pub fn drag_torque(&self, motor: usize, speed: f64) -> f64 {
         self.kq(motor) * speed * speed
+    }
+}
+
+/// One motor's constants, computed once from its parameters: a simulation steps every motor
+/// a thousand times a second, and these would otherwise be divided out at each step.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MotorConstants {
+    /// Torque constant Kt = Ke, N m per A.
+    kt: f64,
+    /// Propeller drag coefficient with the motor's load scale, N m s^2.
+    kq: f64,
+    /// The quadratic coefficient `R kq / Kt` of the voltage balance.
+    a: f64,
+}
+
+impl MotorConstants {
+    /// See [`MotorParams::steady_speed`].
+    pub fn steady_speed(&self, p: &MotorParams, duty: f64, voltage_v: f64) -> f64 {
+        let drive = voltage_v.max(0.0) * duty - p.winding_resistance_ohm * p.idle_current_a;
+        if duty <= 0.0 || drive <= 0.0 {
+            return 0.0;
+        }
+        // Stable form of (-b + sqrt(b^2 + 4 a drive)) / 2a for small a.
+        2.0 * drive / (self.kt + (self.kt * self.kt + 4.0 * self.a * drive).sqrt())
+    }
+
+    /// See [`MotorParams::current`].
+    pub fn current(&self, p: &MotorParams, speed: f64, driven: bool) -> f64 {
+        if !driven {
+            return 0.0;
+        }
+        p.idle_current_a + self.kq * speed * speed / self.kt
     }
 }
 
@@ -158,21 +190,29 @@ pub struct MotorState {
 impl MotorState {
     /// Advances one motor by `dt_s` under `command` at supply `voltage_v`.
     pub fn step(&mut self, p: &MotorParams, motor: usize, command: f64, voltage_v: f64, dt_s: f64) {
-        self.step_with_alpha(p, motor, command, voltage_v, dt_s, p.spinup_alpha(dt_s));
+        self.step_with(
+            p,
+            &p.constants(motor),
+            command,
+            voltage_v,
+            dt_s,
+            p.spinup_alpha(dt_s),
+        );
     }
 
-    /// As [`MotorState::step`], with the lag factor of the step computed once by the caller
-    /// (an exponential per motor and step is a noticeable part of a simulation's cost).
-    pub fn step_with_alpha(
+    /// As [`MotorState::step`], with the motor's constants and the lag factor of the step
+    /// computed once by the caller (an exponential and a few divisions per motor and step are
+    /// a noticeable part of a simulation's cost).
+    pub fn step_with(
         &mut self,
         p: &MotorParams,
-        motor: usize,
+        c: &MotorConstants,
         command: f64,
         voltage_v: f64,
         dt_s: f64,
         alpha: f64,
     ) {
-        self.step_electrical(p, motor, command, voltage_v, alpha);
+        self.step_electrical_with(p, c, command, voltage_v, alpha);
         self.angle_rad = (self.angle_rad + self.speed_rad_s * dt_s) % std::f64::consts::TAU;
     }
 
@@ -187,10 +227,21 @@ impl MotorState {
         voltage_v: f64,
         alpha: f64,
     ) {
+        self.step_electrical_with(p, &p.constants(motor), command, voltage_v, alpha);
+    }
+
+    fn step_electrical_with(
+        &mut self,
+        p: &MotorParams,
+        c: &MotorConstants,
+        command: f64,
+        voltage_v: f64,
+        alpha: f64,
+    ) {
         let duty = p.duty(command);
-        let target = p.steady_speed(motor, duty, voltage_v);
+        let target = c.steady_speed(p, duty, voltage_v);
         self.speed_rad_s += (target - self.speed_rad_s) * alpha;
-        self.current_a = p.current(motor, self.speed_rad_s, duty > 0.0);
+        self.current_a = c.current(p, self.speed_rad_s, duty > 0.0);
     }
 }
 

@@ -472,6 +472,20 @@ impl Program {
             .pieces
             .partition_point(|p| p.t1_s <= t_s)
             .min(self.pieces.len().saturating_sub(1));
+        self.piece_commands_into(k, t_s, out);
+    }
+
+    /// As [`Program::commands_into`] for times that never go back: `cursor` keeps the piece
+    /// of the last call, so a step costs a comparison instead of a search.
+    pub fn commands_from(&self, t_s: f64, cursor: &mut usize, out: &mut [f64]) {
+        let last = self.pieces.len().saturating_sub(1);
+        while *cursor < last && self.pieces[*cursor].t1_s <= t_s {
+            *cursor += 1;
+        }
+        self.piece_commands_into(*cursor, t_s, out);
+    }
+
+    fn piece_commands_into(&self, k: usize, t_s: f64, out: &mut [f64]) {
         let Some(p) = self.pieces.get(k) else {
             out.fill(0.0);
             return;
@@ -513,6 +527,27 @@ mod tests {
         let mut v = vec![0.0; p.motors];
         p.commands_into(t, &mut v);
         v
+    }
+
+    #[test]
+    fn a_cursor_gives_the_same_commands_as_the_search() {
+        let p = compile(
+            &ProgramParams::Stair {
+                off_s: 0.5,
+                steps: 6,
+                max: 0.9,
+                dwell_s: 0.25,
+                direction: Direction::Up,
+                repeats: 2,
+            },
+            4,
+        );
+        let (mut cursor, mut v) = (0, vec![0.0; 4]);
+        for k in 0..=(p.duration_s() * 1000.0) as usize + 10 {
+            let t = k as f64 * 1e-3;
+            p.commands_from(t, &mut cursor, &mut v);
+            assert_eq!(v, at(&p, t), "t = {t}");
+        }
     }
 
     #[test]

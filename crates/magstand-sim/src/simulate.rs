@@ -6,7 +6,7 @@ use rand::{RngExt, SeedableRng};
 use rand_distr::StandardNormal;
 
 use crate::battery::SupplyState;
-use crate::motor::MotorState;
+use crate::motor::{MotorConstants, MotorState};
 use crate::program::Program;
 use crate::scenario::{DisturbanceSource, Scenario, ValidScenario};
 use crate::stand::{BodyState, StandHandle, StandWorld};
@@ -159,6 +159,10 @@ struct Run<'a> {
     module_fields: Vec<Vec3>,
     /// Whether the alternating interference field is on.
     interference_on: bool,
+    /// Each motor's constants.
+    motor_constants: Vec<MotorConstants>,
+    /// The program's piece at the last step.
+    program_cursor: usize,
     /// The motors' lag factor per step.
     spinup_alpha: f64,
 }
@@ -246,6 +250,8 @@ impl<'a> Run<'a> {
             total_a: avionics_a,
             interference_on: p.interference.amplitude_ut.iter().any(|a| *a != 0.0),
             spinup_alpha: p.motors.spinup_alpha(dt),
+            program_cursor: 0,
+            motor_constants: (0..n_motors).map(|m| p.motors.constants(m)).collect(),
         }
     }
 
@@ -260,7 +266,8 @@ impl<'a> Run<'a> {
         let p = self.p;
         let n_motors = self.commands.len();
         let t = k as f64 * self.dt;
-        self.program.commands_into(t, &mut self.commands);
+        self.program
+            .commands_from(t, &mut self.program_cursor, &mut self.commands);
         let throttle = self.commands.iter().sum::<f64>() / n_motors as f64;
         let voltage = self.supply.voltage_v(&p.supply, self.total_a);
         let soft = self.soft;
@@ -366,9 +373,9 @@ impl<'a> Run<'a> {
 
         // Advance everything by one step under the commands of time t.
         for (m, st) in self.motors.iter_mut().enumerate() {
-            st.step_with_alpha(
+            st.step_with(
                 &p.motors,
-                m,
+                &self.motor_constants[m],
                 self.commands[m],
                 voltage,
                 self.dt,

@@ -122,11 +122,9 @@ pub fn run_study(
     let per_batch: Vec<Vec<Result<Vec<MethodOutcome>, StudyError>>> = pool.install(|| {
         runs.par_chunks(batch)
             .map(|chunk| {
-                let out = run::run_batch(study, chunk);
-                for _ in chunk {
+                run::run_batch(study, chunk, &|| {
                     observer.run_finished(done.fetch_add(1, Ordering::Relaxed) + 1, runs.len());
-                }
-                out
+                })
             })
             .collect()
     });

@@ -86,14 +86,18 @@ pub fn identification_series(
 
 /// Runs run `run` of the study.
 pub fn run_one(study: &ValidStudy, run: usize) -> Result<Vec<MethodOutcome>, StudyError> {
-    run_batch(study, &[run]).pop().expect("one run in, one out")
+    run_batch(study, &[run], &|| {})
+        .pop()
+        .expect("one run in, one out")
 }
 
 /// Runs several runs of the study, their stands simulated together in one rapier world
 /// ([`magstand_sim::simulate_batch`]); each run's outcome is the same as [`run_one`]'s.
+/// `run_judged` is called as each run's methods are judged.
 pub fn run_batch(
     study: &ValidStudy,
     runs: &[usize],
+    run_judged: &dyn Fn(),
 ) -> Vec<Result<Vec<MethodOutcome>, StudyError>> {
     let mut prepared = Vec::with_capacity(runs.len());
     let mut series = Vec::with_capacity(2 * runs.len());
@@ -117,12 +121,15 @@ pub fn run_batch(
     runs.iter()
         .zip(prepared)
         .map(|(&run, seed)| {
-            let seed = seed?;
-            let (ident, valid) = (
-                recordings.next().expect("an identification series per run"),
-                recordings.next().expect("a validation series per run"),
-            );
-            Ok(judge(study, run, seed, &ident, &valid))
+            let judged = seed.map(|seed| {
+                let (ident, valid) = (
+                    recordings.next().expect("an identification series per run"),
+                    recordings.next().expect("a validation series per run"),
+                );
+                judge(study, run, seed, &ident, &valid)
+            });
+            run_judged();
+            judged
         })
         .collect()
 }
