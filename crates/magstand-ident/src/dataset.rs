@@ -138,7 +138,7 @@ pub struct Dataset {
     pub off_rows: usize,
     /// Rows of equal input and regressors, indexed on first use ([`crate::row_groups`]); the
     /// rows' `u` and `x` must not change after it.
-    groups: std::sync::OnceLock<std::sync::Arc<crate::row_groups::GroupIndex>>,
+    groups: std::sync::OnceLock<Option<std::sync::Arc<crate::row_groups::GroupIndex>>>,
 }
 
 /// A row counts as motors-off when every command is at most this.
@@ -282,10 +282,14 @@ impl Dataset {
         })
     }
 
-    /// Which rows share their input and regressors exactly, indexed once per dataset.
-    pub fn group_index(&self) -> std::sync::Arc<crate::row_groups::GroupIndex> {
+    /// Which rows share their input and regressors exactly, indexed once per dataset; `None`
+    /// when the inputs hardly repeat ([`crate::row_groups`]).
+    pub fn group_index(&self) -> Option<std::sync::Arc<crate::row_groups::GroupIndex>> {
         self.groups
-            .get_or_init(|| std::sync::Arc::new(crate::row_groups::GroupIndex::of(self)))
+            .get_or_init(|| {
+                crate::row_groups::inputs_repeat(self)
+                    .then(|| std::sync::Arc::new(crate::row_groups::GroupIndex::of(self)))
+            })
             .clone()
     }
 

@@ -88,9 +88,19 @@ pub fn fit(
     use_row: &dyn Fn(usize) -> bool,
     weight: &dyn Fn(usize) -> Vec3,
 ) -> Result<LocalLinearNet, IdentError> {
-    // Rows of equal input and regressors summed first: the same normal equations, with the
-    // memberships computed once per distinct input.
-    crate::row_groups::Groups::of(data, use_row, weight).fit(partition, estimation)
+    if data.group_index().is_some() {
+        // Rows of equal input and regressors summed first: the same normal equations, with
+        // the memberships computed once per distinct input.
+        return crate::row_groups::Groups::of(data, use_row, weight).fit(partition, estimation);
+    }
+    fit_weighted_rows(
+        data,
+        partition,
+        estimation,
+        (0..data.len())
+            .filter(|&k| use_row(k))
+            .map(|k| (data.u[k], data.regressors(k), data.y[k], weight(k))),
+    )
 }
 
 /// Fits the network on weighted rows `(u, regressors, y, weight per axis)`. A row may stand

@@ -5,8 +5,6 @@
 //! and regressors only through their values, so rows that share them can be summed first and
 //! the expensive part (the RBF memberships, an exponential per local model) done once per
 //! distinct value. On a recording whose input never repeats, each group is one row.
-use std::sync::Arc;
-
 use magstand_core::Vec3;
 use magstand_core::rbf::RbfPartition;
 
@@ -68,9 +66,24 @@ impl GroupIndex {
     }
 }
 
-/// The index of `data`, computed on first use and kept with the dataset.
-pub(crate) fn index_of(data: &Dataset) -> Arc<GroupIndex> {
-    data.group_index()
+/// Rows looked at to tell whether a dataset's inputs repeat.
+const PROBE_ROWS: usize = 1024;
+
+/// Whether the rows of `data` repeat their inputs enough for grouping to pay: at most one in
+/// eight of [`PROBE_ROWS`] rows spread over the dataset has an input of its own. (A stair of a
+/// few dozen levels has a few dozen; a flight's or a current's input is new at every row,
+/// and sorting it would cost more than it saves.)
+pub(crate) fn inputs_repeat(data: &Dataset) -> bool {
+    let n = data.len();
+    if n < PROBE_ROWS {
+        return n > 0;
+    }
+    let mut probe: Vec<u64> = (0..PROBE_ROWS)
+        .map(|i| data.u[i * n / PROBE_ROWS].to_bits())
+        .collect();
+    probe.sort_unstable();
+    probe.dedup();
+    probe.len() <= PROBE_ROWS / 8
 }
 
 /// The rows a fit selects, summed per group of equal input and regressors.
@@ -98,7 +111,26 @@ impl<'d> Groups<'d> {
         rows: &dyn Fn(usize) -> bool,
         weight: &dyn Fn(usize) -> Vec3,
     ) -> Self {
-        let index = index_of(data);
+        let Some(index) = data.group_index() else {
+            // Inputs that do not repeat: each selected row is its own group.
+            let rows: Vec<usize> = (0..data.len()).filter(|&k| rows(k)).collect();
+            let w: Vec<Vec3> = rows.iter().map(|&k| weight(k)).collect();
+            return Groups {
+                data,
+                u: rows.iter().map(|&k| data.u[k]).collect(),
+                y_w: rows
+                    .iter()
+                    .zip(&w)
+                    .map(|(&k, w)| {
+                        Vec3::from_fn(|a, _| if w[a] > 0.0 { data.y[k][a] } else { 0.0 })
+                    })
+                    .collect(),
+                n: vec![1; rows.len()],
+                y_sum: rows.iter().map(|&k| data.y[k]).collect(),
+                w,
+                row: rows,
+            };
+        };
         let g = index.len();
         let (mut n, mut w, mut wy, mut y_sum) = (
             vec![0usize; g],
@@ -199,11 +231,11 @@ mod tests {
             overall_only: true,
             ..Default::default()
         };
-        for k in 0..5000 {
+        for k in 0..4400 {
             let u = if k < 4200 {
                 ((k / 200) as f64 / 20.0).min(1.0)
             } else {
-                (k - 4200) as f64 / 800.0
+                (k - 4200) as f64 / 200.0
             };
             rec.t_s.push(k as f64 * 0.01);
             rec.thr[0].push(u);
@@ -220,12 +252,10 @@ mod tests {
     fn rows_group_by_exact_input_in_ascending_order() {
         let d = data();
         let index = GroupIndex::of(&d);
-        // 21 levels, of which the ramp repeats 0 and 1 only at its ends.
-        assert!(
-            index.len() > 21 && index.len() < 21 + 800,
-            "{} groups",
-            index.len()
-        );
+        // 21 levels and a ramp of 200 inputs j/200, of which the 20 at j = 10 i are the
+        // levels i/20 again (the same double: both are the correctly rounded quotient).
+        assert_eq!(index.len(), 21 + 200 - 20, "groups");
+        assert!(d.group_index().is_some(), "a stair's inputs repeat");
         for k in 0..d.len() {
             let g = index.of_row[k] as usize;
             assert_eq!(
@@ -239,8 +269,32 @@ mod tests {
     }
 
     #[test]
+    fn inputs_that_never_repeat_are_not_grouped() {
+        let mut rec = Recording {
+            thr: vec![vec![]],
+            overall_only: true,
+            ..Default::default()
+        };
+        for k in 0..3000 {
+            rec.t_s.push(k as f64 * 0.01);
+            rec.thr[0].push(if k < 200 {
+                0.0
+            } else {
+                (k - 200) as f64 / 2800.0
+            });
+            rec.mag_ut.push(Vec3::new(20.0, 1.0, 45.0));
+        }
+        let d = Dataset::from_recording(&rec, InputKind::Throttle, "ramp").unwrap();
+        assert!(d.group_index().is_none());
+        // Each row is then its own group.
+        let g = Groups::of(&d, &|k| k % 2 == 0, &|_| Vec3::repeat(1.0));
+        assert_eq!(g.len(), 1500);
+    }
+
+    #[test]
     fn a_fit_on_groups_equals_the_fit_on_their_rows() {
         let d = data();
+        assert!(d.group_index().is_some());
         let partition = RbfPartition::new(vec![0.0, 0.3, 0.7, 1.0], vec![5.0; 4]).unwrap();
         let rows = |k: usize| k % 7 != 3;
         let weight = |k: usize| Vec3::new(1.0 + d.u[k], 2.0, 1.0 / (1.0 + d.u[k]));
