@@ -2,6 +2,7 @@
 //! judge each on the validation series against the simulator's truth.
 use magstand_core::{Recording, Vec3};
 use magstand_ident::metrics::Evaluation;
+use magstand_ident::{Dataset, Fit, InputKind};
 use magstand_sim::ValidScenario;
 use rand::SeedableRng;
 
@@ -150,6 +151,27 @@ fn judge(
         None
     };
     let origin = format!("run {run} identification series");
+    // The methods on one input share its identification data (and the grouping of its rows):
+    // built once per input.
+    let mut datasets: Vec<(InputKind, Result<Dataset, String>)> = Vec::new();
+    for m in &study.methods {
+        if let magstand_ident::methods::Fitter::Config(c) = &m.fitter
+            && !datasets.iter().any(|(k, _)| *k == c.input)
+        {
+            let d = Dataset::from_recording(ident, c.input, &origin).map_err(|e| e.to_string());
+            datasets.push((c.input, d));
+        }
+    }
+    let dataset_of = |input: InputKind| -> Result<&Dataset, String> {
+        match datasets.iter().find(|(k, _)| *k == input) {
+            Some((_, Ok(d))) => Ok(d),
+            Some((_, Err(e))) => Err(e.clone()),
+            // Every method's input has its dataset by construction above.
+            None => Err(format!(
+                "{origin}: no identification data for input {input:?}"
+            )),
+        }
+    };
     study
         .methods
         .iter()
@@ -158,8 +180,10 @@ fn judge(
                 magstand_ident::methods::Fitter::Config(config) => config
                     .clone()
                     .check()
-                    .and_then(|c| c.fit_recording(ident, &origin))
                     .map_err(|e| e.to_string())
+                    .and_then(|c| {
+                        dataset_of(config.input).and_then(|d| c.fit(d).map_err(|e| e.to_string()))
+                    })
                     .and_then(|model| {
                         let predicted = model.dist_column(valid);
                         within_range(figures(
