@@ -292,7 +292,13 @@ impl ValidFitConfig {
         want_sd: bool,
     ) -> Result<RowsFit, IdentError> {
         let unit = |_: usize| Vec3::repeat(1.0);
-        let fit_with = |weight: &dyn Fn(usize) -> Vec3,
+        // A long recording chooses its structure, and settles its noise weights, on every
+        // `stride`-th row: the choice needs rows in every input bin and the noise law (a spline
+        // over at most 101 knots) a few hundred per knot, not all of them. The coefficients,
+        // residuals and noise model kept are then fitted on every row, once.
+        let stride = data.len().div_ceil(structure::MAX_CHOICE_ROWS).max(1);
+        let fit_with = |rows: &dyn Fn(usize) -> bool,
+                        weight: &dyn Fn(usize) -> Vec3,
                         weight_at: &dyn Fn(f64) -> Vec3|
          -> Result<Structure, IdentError> {
             let (part, estimation) = match &self.0.family {
@@ -313,7 +319,6 @@ impl ValidFitConfig {
                     // recording chooses on every `stride`-th of them: the choice needs rows
                     // in every input bin, not all of them, and the coefficients are then
                     // fitted on every row.
-                    let stride = data.len().div_ceil(structure::MAX_CHOICE_ROWS).max(1);
                     let fit_part = |k: usize| k.is_multiple_of(stride) && rows(k) && !select(k);
                     let score_part = |k: usize| k.is_multiple_of(stride) && rows(k) && select(k);
                     (
@@ -342,12 +347,49 @@ impl ValidFitConfig {
             let r = m.residuals(data);
             (SdModel::fit(&data.u, &r, rows, self.0.sd_knots), r)
         };
-        let mut s = fit_with(&unit, &|_| Vec3::repeat(1.0))?;
         let is_local_linear = matches!(
             self.0.family,
             Family::LocalLinear { .. } | Family::Automatic { .. }
         );
         let reweight = self.0.weighted && is_local_linear;
+        if reweight && stride > 1 {
+            // The reweighting passes on the spread rows, then one weighted fit on every row.
+            let spread = |k: usize| k.is_multiple_of(stride) && rows(k);
+            let spread_sd = |s: &Structure| {
+                let m = Model::new("", data.spec.clone(), data.reference_ut, s.clone(), None);
+                let r = m.residuals_at(data, &spread);
+                SdModel::fit(&data.u, &r, spread, self.0.sd_knots)
+            };
+            let mut s = fit_with(&spread, &unit, &|_| Vec3::repeat(1.0))?;
+            let mut sd = spread_sd(&s);
+            for _ in 0..2 {
+                let Some(noise) = sd.clone() else { break };
+                let w_at = |u: f64| noise.sd(u).map(|s| 1.0 / (s * s));
+                let w = |k: usize| w_at(data.u[k]);
+                s = fit_with(&spread, &w, &w_at)?;
+                sd = spread_sd(&s);
+            }
+            // The structure stays as the spread rows chose it; its coefficients take every row.
+            let estimation = match &self.0.family {
+                Family::LocalLinear { estimation, .. } | Family::Automatic { estimation, .. } => {
+                    *estimation
+                }
+                _ => Estimation::Global,
+            };
+            if let Structure::LocalLinear(net) = &s {
+                let net = match sd {
+                    Some(noise) => {
+                        let w = |k: usize| noise.sd(data.u[k]).map(|s| 1.0 / (s * s));
+                        local_linear::fit(data, &net.partition, estimation, rows, &w)?
+                    }
+                    None => local_linear::fit(data, &net.partition, estimation, rows, &unit)?,
+                };
+                s = Structure::LocalLinear(net);
+            }
+            let (sd, r) = residual_sd(&s);
+            return Ok((s, sd, Some(r)));
+        }
+        let mut s = fit_with(rows, &unit, &|_| Vec3::repeat(1.0))?;
         // The noise model costs a pass over the data: only when it weights or is kept.
         if !reweight && !want_sd {
             return Ok((s, None, None));
@@ -360,7 +402,7 @@ impl ValidFitConfig {
                 let Some(noise) = sd.clone() else { break };
                 let w_at = |u: f64| noise.sd(u).map(|s| 1.0 / (s * s));
                 let w = |k: usize| w_at(data.u[k]);
-                s = fit_with(&w, &w_at)?;
+                s = fit_with(rows, &w, &w_at)?;
                 (sd, r) = residual_sd(&s);
             }
         }

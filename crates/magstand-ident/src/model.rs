@@ -301,6 +301,21 @@ impl Model {
             .collect()
     }
 
+    /// As [`Model::residuals`] on the rows `rows` selects only; the others are left zero.
+    pub fn residuals_at(&self, data: &crate::Dataset, rows: &dyn Fn(usize) -> bool) -> Vec<Vec3> {
+        let mut s = self.scratch();
+        let off = self.off_output(&mut s);
+        (0..data.len())
+            .map(|k| {
+                if rows(k) {
+                    data.y[k] - (self.output(data.u[k], data.regressors(k), &mut s.phi) - off)
+                } else {
+                    Vec3::zeros()
+                }
+            })
+            .collect()
+    }
+
     /// Predicted disturbance at a row of a recording: zero with the motors off.
     pub fn dist(&self, rec: &Recording, row: usize, off: Vec3, s: &mut Scratch) -> Vec3 {
         self.input.regressors(rec, row, &mut s.x);

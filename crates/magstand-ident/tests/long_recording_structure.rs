@@ -14,6 +14,12 @@ fn truth(u: f64) -> Vec3 {
 }
 
 fn recording(n: usize) -> Recording {
+    recording_with_noise(n, |_| 0.3 / 12f64.sqrt())
+}
+
+/// A stair of random levels with the disturbance `truth` and uniform noise of standard
+/// deviation `sd(level)`.
+fn recording_with_noise(n: usize, sd: impl Fn(f64) -> f64) -> Recording {
     let mut state = 0x2545_f491_4f6c_dd1du64;
     let mut next = || {
         state ^= state << 13;
@@ -32,7 +38,9 @@ fn recording(n: usize) -> Recording {
                 0.1 + 0.9 * next()
             };
         }
-        let noise = Vec3::new(next() - 0.5, next() - 0.5, next() - 0.5) * 0.3;
+        // Uniform on [-1/2, 1/2] has sd 1/sqrt(12).
+        let noise =
+            Vec3::new(next() - 0.5, next() - 0.5, next() - 0.5) * (sd(level) * 12f64.sqrt());
         rec.t_s.push(r as f64 * 0.01);
         rec.mag_ut
             .push(Vec3::new(20.0, 1.0, 45.0) + truth(level) + noise);
@@ -56,4 +64,38 @@ fn a_long_recording_still_follows_a_nonlinear_disturbance() {
         .map(|u| (model.dist_at_input(u, &mut s) - truth(u)).norm())
         .fold(0.0, f64::max);
     assert!(worst < 0.05, "worst error {worst} µT over the levels");
+}
+
+/// Issue 18: a long recording settles its noise weights on rows spread over it and fits the
+/// weighted coefficients on every row once. The noise law it finds, and the disturbance, must
+/// be the true ones.
+#[test]
+fn a_long_recording_finds_its_noise_law_and_its_disturbance() {
+    let sd = |u: f64| 0.05 + 0.5 * u;
+    let rec = recording_with_noise(3 * MAX_CHOICE_ROWS, sd);
+    let data = Dataset::from_recording(&rec, InputKind::Throttle, "long").unwrap();
+    let model = FitConfig::automatic().check().unwrap().fit(&data).unwrap();
+    let noise = model
+        .sd
+        .as_ref()
+        .expect("a weighted fit keeps its noise model");
+    for u in [0.2, 0.5, 0.8, 1.0] {
+        for a in 0..3 {
+            let got = noise.sd(u)[a];
+            assert!(
+                (got - sd(u)).abs() < 0.1 * sd(u),
+                "sd at u = {u}, axis {a}: {got} against {}",
+                sd(u)
+            );
+        }
+    }
+    let mut s = model.scratch();
+    let worst = (0..=40)
+        .map(|i| 0.1 + 0.9 * i as f64 / 40.0)
+        .map(|u| (model.dist_at_input(u, &mut s) - truth(u)).norm())
+        .fold(0.0, f64::max);
+    // The structure search stops earlier on noisier rows, so this bound is looser than the
+    // uniform-noise case's: 1.4 % of the largest deviation (11 µT on x at full throttle).
+    // (Measured 0.091 µT, the same as when every reweighting pass used every row.)
+    assert!(worst < 0.15, "worst error {worst} µT over the levels");
 }
