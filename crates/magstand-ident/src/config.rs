@@ -4,7 +4,7 @@ use magstand_core::rbf::RbfPartition;
 use magstand_core::{Recording, Vec3};
 
 use crate::baseline;
-use crate::dataset::{Dataset, InputKind};
+use crate::dataset::{Dataset, HOLDOUT_EVERY, InputKind, STRUCTURE_SCORE_BLOCK};
 use crate::local_linear::{self, Estimation};
 use crate::model::{FitSummary, IdentifiedRange, Model, Structure};
 use crate::noise_model::SdModel;
@@ -435,7 +435,7 @@ impl ValidFitConfig {
         let holdout = data.holdout_mask();
         // Structure selection scores on its own blocks, never on the held-out ones.
         let blocks = data.time_blocks();
-        let select = |k: usize| blocks[k] % 5 == 3;
+        let select = |k: usize| blocks[k] % HOLDOUT_EVERY as u64 == STRUCTURE_SCORE_BLOCK as u64;
         let train = |k: usize| !holdout[k];
         let (s_train, _, _) = self.fit_rows(data, &train, &select, false)?;
         let mut train_model = Model::new("", data.spec.clone(), data.reference_ut, s_train, None);

@@ -163,6 +163,11 @@ pub fn motors_off_reference(rec: &Recording, off_rows: &[usize]) -> Option<Vec3>
 /// Every how many time blocks the identification split holds one out.
 pub const HOLDOUT_EVERY: usize = 5;
 
+/// Which block of every [`HOLDOUT_EVERY`] the automatic structure search scores its
+/// candidates on: the one before the held-out block (the last), so the search never sees the
+/// held-out rows.
+pub const STRUCTURE_SCORE_BLOCK: usize = HOLDOUT_EVERY - 2;
+
 /// The identification split's block length for the times `t_s` (ascending), s: 1 s, or
 /// shorter so that the span holds at least 50 blocks.
 pub fn identification_block_s(t_s: &[f64]) -> f64 {
