@@ -9,7 +9,8 @@ use crate::files;
 use crate::progress::RunsBar;
 use crate::simulate_cmd::load_scenario;
 use magstand_study::{
-    Shard, StudyConfig, StudyError, StudyResult, Summary, run_study, write_summary,
+    SWEEP_FILE, Shard, StudyConfig, StudyError, StudyResult, Summary, ValidSweep, run_study,
+    sweep_csv, sweep_rows, write_summary,
 };
 
 /// Arguments of `magstand montecarlo`.
@@ -135,33 +136,17 @@ fn study(a: StudyArgs) -> Result<()> {
             "--sweep runs whole studies; to spread a sweep over machines, run one sharded study per value with --ident-set KEY=VALUE"
         );
     }
-    let (key, values) = sweep
-        .split_once('=')
-        .filter(|(k, v)| !k.trim().is_empty() && !v.trim().is_empty())
-        .with_context(|| format!("--sweep `{sweep}`: expected key=v1,v2,..."))?;
-    let values: Vec<&str> = values.split(',').map(str::trim).collect();
-    // Check every value before running any, so a typo in the last value fails at once.
-    let studies = values
-        .iter()
-        .map(|v| {
-            let mut ident = a.ident_overrides.clone();
-            ident.push(format!("{key}={v}"));
-            config(ident)
-                .check(&scenario)
-                .map_err(flagged)
-                .with_context(|| format!("--sweep value {key}={v}"))
-        })
-        .collect::<Result<Vec<_>>>()?;
-    let folders = sweep_folders(key, &values)?;
-    let mut outputs = vec![out.join("sweep.csv")];
-    for (folder, valid) in folders.iter().zip(&studies) {
+    let sweep = ValidSweep::new(sweep, &scenario, config, &a.ident_overrides).map_err(flagged)?;
+    let key = &sweep.key;
+    let mut outputs = vec![out.join(SWEEP_FILE)];
+    for (folder, valid) in sweep.folders.iter().zip(&sweep.studies) {
         let methods: Vec<&str> = valid.methods().iter().map(|m| m.id).collect();
         outputs.extend(study_outputs(&out.join(folder), &methods, None));
     }
     files::refuse_overwriting_inputs(&inputs, &outputs)?;
     files::ensure_dir(&out)?;
     let mut table = Vec::new();
-    for ((v, valid), folder) in values.iter().zip(&studies).zip(&folders) {
+    for ((v, valid), folder) in sweep.values.iter().zip(&sweep.studies).zip(&sweep.folders) {
         let dir = out.join(folder);
         files::ensure_dir(&dir)?;
         let bar = RunsBar::new(&format!("{key}={v}"), valid.run_indices().len());
@@ -171,13 +156,13 @@ fn study(a: StudyArgs) -> Result<()> {
         write_figures(&summary, &result, &dir)?;
         table.push((v.to_string(), summary));
     }
-    let text = sweep_table(key, &table);
-    magstand_core::atomic_file::write_bytes(&out.join("sweep.csv"), text.as_bytes())?;
+    let text = sweep_csv(key, &table);
+    magstand_core::atomic_file::write_bytes(&out.join(SWEEP_FILE), text.as_bytes())?;
     println!("Accuracy against {key} (validation series, {runs} runs per value):\n");
     print!("{}", sweep_pretty(key, &table));
     println!(
         "\nwrote {} and one folder per value",
-        out.join("sweep.csv").display()
+        out.join(SWEEP_FILE).display()
     );
     Ok(())
 }
@@ -192,31 +177,6 @@ fn flagged(e: StudyError) -> anyhow::Error {
         } => anyhow::anyhow!("--{setting} {value} is not allowed: expected {expected}"),
         e => e.into(),
     }
-}
-
-/// The folder of each sweep value inside `--out`: `KEY=VALUE` with every character outside
-/// letters, digits and `.+-_=` replaced by `_`, so a value can never name a path elsewhere.
-fn sweep_folders(key: &str, values: &[&str]) -> Result<Vec<String>> {
-    let safe = |text: &str| -> String {
-        text.chars()
-            .map(|c| match c {
-                c if c.is_ascii_alphanumeric() || "+-_=.".contains(c) => c,
-                _ => '_',
-            })
-            .collect()
-    };
-    let mut folders: Vec<String> = Vec::new();
-    for v in values {
-        let folder = format!("{}={}", safe(key), safe(v));
-        if let Some(k) = folders.iter().position(|f| *f == folder) {
-            bail!(
-                "--sweep values `{}` and `{v}` would share the folder {folder}; give distinct values",
-                values[k]
-            );
-        }
-        folders.push(folder);
-    }
-    Ok(folders)
 }
 
 /// Every file a study writes into `out` (and `json`), for the check against its inputs.
@@ -342,33 +302,6 @@ pub fn summary_table(s: &Summary) -> String {
             fmt_opt(m.mse_crlb_ratio, 2),
             m.failures
         );
-    }
-    out
-}
-
-fn sweep_rows(table: &[(String, Summary)]) -> Vec<[String; 6]> {
-    let mut rows = Vec::new();
-    for (v, s) in table {
-        for m in &s.methods {
-            let r = m.figure("rmse_ut");
-            rows.push([
-                v.clone(),
-                m.method.clone(),
-                fmt_opt(r.map(|r| r.p50), 4),
-                fmt_opt(r.map(|r| r.p95), 4),
-                fmt_opt(m.figure("heading_after_deg").map(|h| h.p50), 3),
-                fmt_opt(m.crlb_ratio, 3),
-            ]);
-        }
-    }
-    rows
-}
-
-fn sweep_table(key: &str, table: &[(String, Summary)]) -> String {
-    let mut out =
-        format!("{key},method,rmse_ut_p50,rmse_ut_p95,heading_after_deg_p50,crlb_ratio\n");
-    for r in sweep_rows(table) {
-        out += &(r.join(",") + "\n");
     }
     out
 }

@@ -230,7 +230,9 @@ impl MotorState {
         self.step_electrical_with(p, &p.constants(motor), command, voltage_v, alpha);
     }
 
-    fn step_electrical_with(
+    /// As [`MotorState::step_electrical`], with the motor's constants computed once by the
+    /// caller.
+    pub fn step_electrical_with(
         &mut self,
         p: &MotorParams,
         c: &MotorConstants,

@@ -156,6 +156,7 @@ pub fn replay(
     let mut total_a = avionics;
     // The command that acted last, per motor: it decides whether the ESC is driving.
     let mut acting: Vec<usize> = vec![0; n_motors];
+    let constants: Vec<_> = (0..n_motors).map(|m| p.motors.constants(m)).collect();
     let mut steps = Vec::new();
     for r in 0..rows {
         if r > 0 {
@@ -179,7 +180,13 @@ pub fn replay(
                 for (m, st) in motors.iter_mut().enumerate() {
                     for (&(row, len), &alpha) in parts.iter().zip(&alphas) {
                         if len > 0.0 {
-                            st.step_electrical(&p.motors, m, command(m, row), voltage, alpha);
+                            st.step_electrical_with(
+                                &p.motors,
+                                &constants[m],
+                                command(m, row),
+                                voltage,
+                                alpha,
+                            );
                             acting[m] = row;
                         }
                     }

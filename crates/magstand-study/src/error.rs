@@ -13,16 +13,19 @@ pub enum StudySetting {
     Methods,
     /// The worker threads.
     Threads,
+    /// A procedure sweep (`key=v1,v2,...`).
+    Sweep,
 }
 
 impl StudySetting {
-    /// The setting's name (`runs`, `shard`, `methods`, `threads`).
+    /// The setting's name (`runs`, `shard`, `methods`, `threads`, `sweep`).
     pub fn name(self) -> &'static str {
         match self {
             StudySetting::Runs => "runs",
             StudySetting::Shard => "shard",
             StudySetting::Methods => "methods",
             StudySetting::Threads => "threads",
+            StudySetting::Sweep => "sweep",
         }
     }
 }

@@ -52,6 +52,7 @@ pub mod run;
 pub mod runs_csv;
 mod study_info;
 pub mod summary;
+pub mod sweep;
 
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -63,6 +64,7 @@ pub use error::{StudyError, StudySetting};
 pub use run::{MethodOutcome, identification_series};
 pub use study_info::StudyInfo;
 pub use summary::{FIGURE_NAMES, Summary};
+pub use sweep::{SWEEP_FILE, ValidSweep, sweep_csv, sweep_rows};
 
 /// Receives progress from a running study; kept apart from the study so a command line can
 /// show a bar and a library caller can ignore it. Called from worker threads.
