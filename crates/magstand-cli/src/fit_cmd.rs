@@ -7,10 +7,7 @@ use clap::{Args, ValueEnum};
 use crate::files;
 use crate::simulate_cmd::load_scenario;
 use magstand_core::{AXES, recording_csv};
-use magstand_ident::{
-    Estimation, Family, FitConfig, FitSetting, InputKind, Model, Structure, evenly_spaced_centers,
-    paper_ratio_width,
-};
+use magstand_ident::{Estimation, Family, FitConfig, FitSetting, InputKind, Model, Structure};
 
 /// Estimation method on the command line.
 #[derive(Clone, Copy, ValueEnum)]
@@ -237,26 +234,10 @@ fn config(a: &FitArgs) -> Result<FitConfig> {
     });
     let mut cfg = match a.method.unwrap_or(MethodArg::LocalLinear) {
         MethodArg::LocalLinear if structure_flags => {
-            let est = estimation.unwrap_or(Estimation::Local);
-            let centers = match (&a.centers, a.rbf) {
-                (Some(c), Some(k)) if c.len() != k => {
-                    bail!("--rbf {k} but {} --centers given", c.len())
-                }
-                (Some(c), _) => c.clone(),
-                (None, Some(k)) => evenly_spaced_centers(k),
-                (None, None) => vec![0.0, 0.5, 1.0],
-            };
-            let eps = a.width.unwrap_or(paper_ratio_width(centers.len()));
-            FitConfig::fixed(centers, eps, est).with_weighting(false)
+            FitConfig::stated_structure(a.centers.clone(), a.rbf, a.width, estimation)
+                .map_err(|e| anyhow::anyhow!(in_flag_terms(&e.to_string())))?
         }
-        MethodArg::LocalLinear => {
-            let mut c = FitConfig::automatic();
-            c.family = Family::Automatic {
-                max_models: a.max_models,
-                estimation: estimation.unwrap_or(Estimation::Global),
-            };
-            c
-        }
+        MethodArg::LocalLinear => FitConfig::automatic_with(a.max_models, estimation),
         MethodArg::Ardupilot => FitConfig::baseline(Family::ArduPilot),
         MethodArg::Px4 => FitConfig::baseline(Family::Px4),
         MethodArg::Cubic => FitConfig::baseline(Family::Cubic),

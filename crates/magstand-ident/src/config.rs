@@ -77,6 +77,47 @@ impl FitConfig {
         Self::fixed(evenly_spaced_centers(k), paper_ratio_width(k), estimation)
     }
 
+    /// A fixed local linear structure from what a user stated, the rest by the paper's rules:
+    /// `centers` (or `rbf` of them evenly spaced on 0..1, or the paper's 0, 0.5, 1), `width`
+    /// (or the paper's width-to-spacing ratio, [`paper_ratio_width`]), `estimation` (or the
+    /// paper's local estimation), unweighted. Centres and a count that disagree are refused.
+    pub fn stated_structure(
+        centers: Option<Vec<f64>>,
+        rbf: Option<usize>,
+        width: Option<f64>,
+        estimation: Option<Estimation>,
+    ) -> Result<Self, IdentError> {
+        let centers = match (centers, rbf) {
+            (Some(c), Some(k)) if c.len() != k => {
+                return Err(IdentError::InvalidSetting {
+                    setting: FitSetting::Centers,
+                    value: format!("{} centres", c.len()),
+                    expected: format!("as many centres as local models ({k})"),
+                });
+            }
+            (Some(c), _) => c,
+            (None, Some(k)) => evenly_spaced_centers(k),
+            (None, None) => evenly_spaced_centers(3),
+        };
+        let eps = width.unwrap_or(paper_ratio_width(centers.len()));
+        Ok(
+            Self::fixed(centers, eps, estimation.unwrap_or(Estimation::Local))
+                .with_weighting(false),
+        )
+    }
+
+    /// The automatic structure with at most `max_models` local models and `estimation` (global
+    /// when not stated), inverse-variance weighted.
+    pub fn automatic_with(max_models: usize, estimation: Option<Estimation>) -> Self {
+        Self {
+            family: Family::Automatic {
+                max_models,
+                estimation: estimation.unwrap_or(Estimation::Global),
+            },
+            ..Self::automatic()
+        }
+    }
+
     /// Automatic structure with global estimation and inverse-variance weighting.
     pub fn automatic() -> Self {
         Self {
@@ -512,3 +553,31 @@ impl ValidFitConfig {
 /// What a fit on chosen rows gives: the structure, the noise model when asked for, and the
 /// residuals of the rows when asked for.
 type RowsFit = (Structure, Option<SdModel>, Option<Vec<Vec3>>);
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_structure_stated_by_nothing_is_the_papers() {
+        assert_eq!(
+            FitConfig::stated_structure(None, None, None, None).unwrap(),
+            FitConfig::paper()
+        );
+        // Four evenly spaced at the paper's ratio: spacing 1/3, width 6.
+        let four = FitConfig::stated_structure(None, Some(4), None, None).unwrap();
+        assert_eq!(
+            four,
+            FitConfig::fixed(evenly_spaced_centers(4), 6.0, Estimation::Local)
+        );
+        let e = FitConfig::stated_structure(Some(vec![0.0, 1.0]), Some(3), None, None)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("`centers`") && e.contains("(3)"), "{e}");
+        assert_eq!(
+            FitConfig::automatic_with(10, None),
+            FitConfig::automatic(),
+            "the automatic defaults"
+        );
+    }
+}
