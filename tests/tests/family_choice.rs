@@ -167,7 +167,7 @@ fn in_the_paper_like_study_the_choice_is_within_twice_the_current_model() {
     let p50 = |id: &str| {
         let m = summary.method(id).unwrap();
         assert_eq!(m.failures, 0, "{id} failed: {:?}", result.outcomes);
-        m.figure("rmse_ut").unwrap().p50
+        m.figure(magstand_study::FigureId::RmseUt).unwrap().p50
     };
     let (throttle, current, physics, chosen) = (
         p50("automatic"),

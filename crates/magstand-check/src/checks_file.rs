@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use magstand_ident::methods::{self, Method};
 use magstand_logs::export::Autopilot;
 use magstand_sim::{Scenario, ValidScenario};
-use magstand_study::{FIGURE_NAMES, StudyConfig, StudyError, StudySetting, ValidStudy};
+use magstand_study::{FIGURE_NAMES, FigureId, StudyConfig, StudyError, StudySetting, ValidStudy};
 
 use crate::CheckError;
 
@@ -78,8 +78,8 @@ impl Ratio {
 pub enum Limit {
     /// A study figure's statistic over the runs is at most `max`.
     Figure {
-        /// Figure name, as in runs.csv ([`FIGURE_NAMES`]).
-        figure: &'static str,
+        /// The figure.
+        figure: FigureId,
         /// Which statistic.
         statistic: Statistic,
         /// Upper limit, in the figure's unit.
@@ -163,7 +163,7 @@ fn autopilot_key(a: Autopilot) -> &'static str {
 
 /// Figure names accepted beside [`FIGURE_NAMES`]: `heading_deg` is the heading error that
 /// remains after compensation.
-const FIGURE_ALIASES: [(&str, &str); 1] = [("heading_deg", "heading_after_deg")];
+const FIGURE_ALIASES: [(&str, FigureId); 1] = [("heading_deg", FigureId::HeadingAfterDeg)];
 
 /// The method a check names when it gives none: what `magstand fit` does with no options
 /// (the choice among families, `chosen`), or for an entry with export limits the local linear
@@ -482,16 +482,12 @@ impl Entry<'_> {
             ]);
             names.join(", ")
         };
-        let figure = FIGURE_NAMES
-            .iter()
-            .find(|f| **f == key)
-            .copied()
-            .or_else(|| {
-                FIGURE_ALIASES
-                    .iter()
-                    .find(|(a, _)| *a == key)
-                    .map(|(_, f)| *f)
-            });
+        let figure = FigureId::from_name(key).or_else(|| {
+            FIGURE_ALIASES
+                .iter()
+                .find(|(a, _)| *a == key)
+                .map(|(_, f)| *f)
+        });
         let ratio = match key {
             "crlb_ratio" => Some(Ratio::Crlb),
             "mse_crlb_ratio" => Some(Ratio::MseCrlb),

@@ -213,7 +213,7 @@ fn judge(
             figure,
             statistic,
             max,
-        } => match method.and_then(|m| m.figure(figure)) {
+        } => match method.and_then(|m| m.figure(*figure)) {
             Some(stats) => {
                 let v = statistic.of(stats);
                 result.measured = number(v);

@@ -7,7 +7,7 @@
 //! `cargo run --release -p magstand-cli --example accuracy_study`
 use anyhow::Result;
 use magstand_sim::Scenario;
-use magstand_study::{StudyConfig, StudyObserver, Summary, run_study};
+use magstand_study::{FigureId, StudyConfig, StudyObserver, Summary, run_study};
 
 /// Prints each finished run.
 struct Lines;
@@ -31,7 +31,7 @@ fn run() -> Result<()> {
     let result = run_study(&study, None, &Lines)?;
     let summary = Summary::new(result.info, &result.outcomes);
     for m in &summary.methods {
-        let rmse = m.figure("rmse_ut").map_or(f64::NAN, |s| s.p50);
+        let rmse = m.figure(FigureId::RmseUt).map_or(f64::NAN, |s| s.p50);
         println!(
             "{:36} median disturbance error {rmse:.3} µT, variance over the Cramer-Rao bound {}",
             m.label,

@@ -9,8 +9,8 @@ use crate::files;
 use crate::progress::RunsBar;
 use crate::simulate_cmd::load_scenario;
 use magstand_study::{
-    SWEEP_FILE, Shard, StudyConfig, StudyError, StudyResult, Summary, ValidSweep, run_study,
-    sweep_csv, sweep_rows, write_summary,
+    FigureId, SWEEP_FILE, Shard, StudyConfig, StudyError, StudyResult, Summary, ValidSweep,
+    run_study, sweep_csv, sweep_rows, write_summary,
 };
 
 /// Arguments of `magstand montecarlo`.
@@ -290,8 +290,8 @@ pub fn summary_table(s: &Summary) -> String {
         "failed"
     );
     for m in &s.methods {
-        let r = m.figure("rmse_ut");
-        let h = m.figure("heading_after_deg");
+        let r = m.figure(FigureId::RmseUt);
+        let h = m.figure(FigureId::HeadingAfterDeg);
         out += &format!(
             "{:<40} {:>24} {:>22} {:>10} {:>10} {:>6}\n",
             m.label,

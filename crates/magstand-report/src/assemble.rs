@@ -3,7 +3,7 @@ use magstand_core::{Recording, Vec3};
 use magstand_ident::Model;
 use magstand_ident::methods;
 use magstand_ident::metrics::Evaluation;
-use magstand_study::{MethodOutcome, Summary};
+use magstand_study::{FigureId, MethodOutcome, Summary};
 
 use crate::page::{Report, Section};
 use crate::{ReportError, figures, montecarlo};
@@ -196,13 +196,13 @@ pub fn build(inputs: &ReportInputs) -> Result<Report, ReportError> {
                 .methods
                 .iter()
                 .map(|m| {
-                    let r = m.figure("rmse_ut");
+                    let r = m.figure(FigureId::RmseUt);
                     vec![
                         m.label.clone(),
                         r.map(|r| f3(r.p50)).unwrap_or_else(|| "-".into()),
                         r.map(|r| format!("{} - {}", f3(r.p5), f3(r.p95)))
                             .unwrap_or_else(|| "-".into()),
-                        m.figure("heading_after_deg")
+                        m.figure(FigureId::HeadingAfterDeg)
                             .map(|h| f3(h.p50))
                             .unwrap_or_else(|| "-".into()),
                         m.crlb_ratio.map(f3).unwrap_or_else(|| "-".into()),

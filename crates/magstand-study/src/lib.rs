@@ -17,7 +17,7 @@
 //! # Example
 //! ```
 //! use magstand_sim::Scenario;
-//! use magstand_study::{StudyConfig, Summary, run_study, Silent};
+//! use magstand_study::{FigureId, StudyConfig, Summary, run_study, Silent};
 //!
 //! let text = r#"
 //!     name = "quick stair"
@@ -37,8 +37,8 @@
 //! let study = config.check(&scenario)?;
 //! let result = run_study(&study, Some(1), &Silent)?;
 //! let summary = Summary::new(result.info.clone(), &result.outcomes);
-//! let px4 = summary.method("px4").unwrap().figure("rmse_ut").unwrap();
-//! let rbf = summary.method("global").unwrap().figure("rmse_ut").unwrap();
+//! let px4 = summary.method("px4").unwrap().figure(FigureId::RmseUt).unwrap();
+//! let rbf = summary.method("global").unwrap().figure(FigureId::RmseUt).unwrap();
 //! // A straight line cannot follow the convex disturbance; three local lines can.
 //! assert!(rbf.mean < px4.mean);
 //! # Ok::<(), Box<dyn std::error::Error>>(())
@@ -63,7 +63,7 @@ pub use config::{Shard, StudyConfig, ValidStudy};
 pub use error::{StudyError, StudySetting};
 pub use run::{MethodOutcome, identification_series};
 pub use study_info::StudyInfo;
-pub use summary::{FIGURE_NAMES, Summary};
+pub use summary::{FIGURE_NAMES, FigureId, Summary};
 pub use sweep::{SWEEP_FILE, ValidSweep, sweep_csv, sweep_rows};
 
 /// Receives progress from a running study; kept apart from the study so a command line can

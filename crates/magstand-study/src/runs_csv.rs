@@ -9,16 +9,18 @@ use std::path::Path;
 use crate::StudyError;
 use crate::crlb::{PARAMS_PER_AXIS, parameter_names};
 use crate::run::{BINS, Figures, MethodOutcome};
+use crate::summary::FigureId;
 use magstand_core::{AXES, atomic_file};
 
-const SCALARS: [&str; 7] = [
-    "rmse_x_ut",
-    "rmse_y_ut",
-    "rmse_z_ut",
-    "rmse_ut",
-    "e20_rms_pct",
-    "heading_before_deg",
-    "heading_after_deg",
+/// The scalar figures' columns, in the file's order (the reader takes them in this order).
+const SCALARS: [FigureId; 7] = [
+    FigureId::RmseXUt,
+    FigureId::RmseYUt,
+    FigureId::RmseZUt,
+    FigureId::RmseUt,
+    FigureId::E20RmsPct,
+    FigureId::HeadingBeforeDeg,
+    FigureId::HeadingAfterDeg,
 ];
 
 /// Largest magnitude of a figure in `runs.csv` (errors in µT or degrees, ratios, parameter
@@ -32,7 +34,7 @@ pub fn header() -> Vec<String> {
         .iter()
         .map(|s| s.to_string())
         .collect();
-    h.extend(SCALARS.iter().map(|s| s.to_string()));
+    h.extend(SCALARS.iter().map(|s| s.name().to_string()));
     h.extend((0..BINS).map(|b| format!("bin_{b}_rmse_ut")));
     for prefix in ["perr", "crlb"] {
         for axis in AXES {
@@ -72,18 +74,7 @@ pub fn to_bytes(outcomes: &[MethodOutcome]) -> Result<Vec<u8>, csv::Error> {
         ];
         match &o.figures {
             Some(f) => {
-                row.extend(
-                    [
-                        f.rmse_axis_ut[0],
-                        f.rmse_axis_ut[1],
-                        f.rmse_axis_ut[2],
-                        f.rmse_ut,
-                        f.e20_rms_pct,
-                        f.heading_before_deg,
-                        f.heading_after_deg,
-                    ]
-                    .map(number),
-                );
+                row.extend(SCALARS.map(|id| number(id.of(f))));
                 row.extend(f.bin_rmse_ut.map(number));
                 row.extend(flat(&f.param_error));
                 row.extend(flat(&f.crlb_diag));

@@ -66,17 +66,87 @@ pub fn percentile(sorted: &[f64], q: f64) -> f64 {
     sorted[lo] + (h - lo as f64) * (sorted[hi] - sorted[lo])
 }
 
-/// The scalar figures of every run and method, as named in runs.csv and SUMMARY.json: the
-/// disturbance RMSE against the truth (norm, then per axis, µT), the eq. 20 error (%), and the
-/// worst level-mean heading error before and after compensation (degrees).
+/// The scalar figures of every run and method: the disturbance RMSE against the truth (norm,
+/// then per axis, µT), the eq. 20 error (%), and the worst level-mean heading error before and
+/// after compensation (degrees). Each has one spelling, [`FigureId::name`], in runs.csv,
+/// SUMMARY.json, sweep.csv and check files.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum FigureId {
+    /// RMSE of the error vector's norm, µT.
+    RmseUt,
+    /// RMSE on x, µT.
+    RmseXUt,
+    /// RMSE on y, µT.
+    RmseYUt,
+    /// RMSE on z, µT.
+    RmseZUt,
+    /// RMS eq. 20 error with the motors running, %.
+    E20RmsPct,
+    /// Worst level-mean heading error before compensation, degrees.
+    HeadingBeforeDeg,
+    /// Worst level-mean heading error after compensation, degrees.
+    HeadingAfterDeg,
+}
+
+impl FigureId {
+    /// Every figure, in the order files list them.
+    pub const ALL: [FigureId; 7] = [
+        FigureId::RmseUt,
+        FigureId::RmseXUt,
+        FigureId::RmseYUt,
+        FigureId::RmseZUt,
+        FigureId::E20RmsPct,
+        FigureId::HeadingBeforeDeg,
+        FigureId::HeadingAfterDeg,
+    ];
+
+    /// Its name in every file.
+    pub const fn name(self) -> &'static str {
+        match self {
+            FigureId::RmseUt => "rmse_ut",
+            FigureId::RmseXUt => "rmse_x_ut",
+            FigureId::RmseYUt => "rmse_y_ut",
+            FigureId::RmseZUt => "rmse_z_ut",
+            FigureId::E20RmsPct => "e20_rms_pct",
+            FigureId::HeadingBeforeDeg => "heading_before_deg",
+            FigureId::HeadingAfterDeg => "heading_after_deg",
+        }
+    }
+
+    /// The figure of a name, if it is one.
+    pub fn from_name(name: &str) -> Option<Self> {
+        Self::ALL.into_iter().find(|f| f.name() == name)
+    }
+
+    /// Its value in one run's figures.
+    pub fn of(self, f: &Figures) -> f64 {
+        match self {
+            FigureId::RmseUt => f.rmse_ut,
+            FigureId::RmseXUt => f.rmse_axis_ut[0],
+            FigureId::RmseYUt => f.rmse_axis_ut[1],
+            FigureId::RmseZUt => f.rmse_axis_ut[2],
+            FigureId::E20RmsPct => f.e20_rms_pct,
+            FigureId::HeadingBeforeDeg => f.heading_before_deg,
+            FigureId::HeadingAfterDeg => f.heading_after_deg,
+        }
+    }
+}
+
+impl std::fmt::Display for FigureId {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// The names of [`FigureId::ALL`].
 pub const FIGURE_NAMES: [&str; 7] = [
-    "rmse_ut",
-    "rmse_x_ut",
-    "rmse_y_ut",
-    "rmse_z_ut",
-    "e20_rms_pct",
-    "heading_before_deg",
-    "heading_after_deg",
+    FigureId::RmseUt.name(),
+    FigureId::RmseXUt.name(),
+    FigureId::RmseYUt.name(),
+    FigureId::RmseZUt.name(),
+    FigureId::E20RmsPct.name(),
+    FigureId::HeadingBeforeDeg.name(),
+    FigureId::HeadingAfterDeg.name(),
 ];
 
 /// A named figure's stats.
@@ -128,11 +198,11 @@ pub struct MethodSummary {
 }
 
 impl MethodSummary {
-    /// Stats of a figure by name.
-    pub fn figure(&self, name: &str) -> Option<&Stats> {
+    /// Stats of a figure.
+    pub fn figure(&self, id: FigureId) -> Option<&Stats> {
         self.figures
             .iter()
-            .find(|f| f.name == name)
+            .find(|f| f.name == id.name())
             .map(|f| &f.stats)
     }
 }
@@ -175,25 +245,14 @@ impl Summary {
 
 fn summarize(id: &str, rows: &[&MethodOutcome]) -> MethodSummary {
     let ok: Vec<&Figures> = rows.iter().filter_map(|o| o.figures.as_ref()).collect();
-    let scalar = |name: &str, f: &dyn Fn(&Figures) -> f64| {
-        Stats::of(ok.iter().map(|x| f(x))).map(|stats| Figure {
-            name: name.into(),
-            stats,
-        })
-    };
-    let values: [&dyn Fn(&Figures) -> f64; FIGURE_NAMES.len()] = [
-        &|f| f.rmse_ut,
-        &|f| f.rmse_axis_ut[0],
-        &|f| f.rmse_axis_ut[1],
-        &|f| f.rmse_axis_ut[2],
-        &|f| f.e20_rms_pct,
-        &|f| f.heading_before_deg,
-        &|f| f.heading_after_deg,
-    ];
-    let figures = FIGURE_NAMES
+    let figures = FigureId::ALL
         .iter()
-        .zip(values)
-        .filter_map(|(name, f)| scalar(name, f))
+        .filter_map(|id| {
+            Stats::of(ok.iter().map(|x| id.of(x))).map(|stats| Figure {
+                name: id.name().into(),
+                stats,
+            })
+        })
         .collect();
     let bins = (0..BINS)
         .map(|b| Stats::of(ok.iter().map(|f| f.bin_rmse_ut[b])))

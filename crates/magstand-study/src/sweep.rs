@@ -3,7 +3,7 @@
 //! tabulated against the value in `sweep.csv`, to choose a calibration procedure.
 use magstand_sim::ValidScenario;
 
-use crate::summary::Summary;
+use crate::summary::{FigureId, Summary};
 use crate::{StudyConfig, StudyError, StudySetting, ValidStudy};
 
 /// The sweep's table, written beside one folder per value.
@@ -101,13 +101,13 @@ pub fn sweep_rows(table: &[(String, Summary)]) -> Vec<[String; 6]> {
     let mut rows = Vec::new();
     for (v, s) in table {
         for m in &s.methods {
-            let r = m.figure("rmse_ut");
+            let r = m.figure(FigureId::RmseUt);
             rows.push([
                 v.clone(),
                 m.method.clone(),
                 fmt_opt(r.map(|r| r.p50), 4),
                 fmt_opt(r.map(|r| r.p95), 4),
-                fmt_opt(m.figure("heading_after_deg").map(|h| h.p50), 3),
+                fmt_opt(m.figure(FigureId::HeadingAfterDeg).map(|h| h.p50), 3),
                 fmt_opt(m.crlb_ratio, 3),
             ]);
         }
