@@ -10,7 +10,7 @@ use crate::progress::RunsBar;
 use crate::simulate_cmd::load_scenario;
 use magstand_study::{
     FigureId, SWEEP_FILE, Shard, StudyConfig, StudyError, StudyResult, Summary, ValidSweep,
-    run_study, sweep_csv, sweep_rows, write_summary,
+    format_figure, run_study, sweep_csv, sweep_rows, write_summary,
 };
 
 /// Arguments of `magstand montecarlo`.
@@ -269,11 +269,6 @@ pub fn write_figures(summary: &Summary, result: &StudyResult, out: &Path) -> Res
     Ok(figures.into_iter().map(|(n, _)| n).collect())
 }
 
-fn fmt_opt(v: Option<f64>, digits: usize) -> String {
-    v.map(|x| format!("{x:.digits$}"))
-        .unwrap_or_else(|| "-".into())
-}
-
 /// The summary as a fixed-width table.
 pub fn summary_table(s: &Summary) -> String {
     let mut out = format!(
@@ -297,9 +292,9 @@ pub fn summary_table(s: &Summary) -> String {
             m.label,
             r.map(|r| format!("{:.3} [{:.3},{:.3}]", r.p50, r.p5, r.p95))
                 .unwrap_or_else(|| "-".into()),
-            fmt_opt(h.map(|h| h.p50), 2),
-            fmt_opt(m.crlb_ratio, 2),
-            fmt_opt(m.mse_crlb_ratio, 2),
+            format_figure(h.map(|h| h.p50), 2),
+            format_figure(m.crlb_ratio, 2),
+            format_figure(m.mse_crlb_ratio, 2),
             m.failures
         );
     }

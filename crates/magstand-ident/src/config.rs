@@ -383,71 +383,68 @@ impl ValidFitConfig {
                 data, &part, estimation, rows, weight,
             )?))
         };
+        let model_of =
+            |s: &Structure| Model::new("", data.spec.clone(), data.reference_ut, s.clone(), None);
         let residual_sd = |s: &Structure| {
-            let m = Model::new("", data.spec.clone(), data.reference_ut, s.clone(), None);
-            let r = m.residuals(data);
+            let r = model_of(s).residuals(data);
             (SdModel::fit(&data.u, &r, rows, self.0.sd_knots), r)
         };
-        let is_local_linear = matches!(
-            self.0.family,
-            Family::LocalLinear { .. } | Family::Automatic { .. }
-        );
-        let reweight = self.0.weighted && is_local_linear;
-        if reweight && stride > 1 {
-            // The reweighting passes on the spread rows, then one weighted fit on every row.
-            let spread = |k: usize| k.is_multiple_of(stride) && rows(k);
-            let spread_sd = |s: &Structure| {
-                let m = Model::new("", data.spec.clone(), data.reference_ut, s.clone(), None);
-                let r = m.residuals_at(data, &spread);
-                SdModel::fit(&data.u, &r, spread, self.0.sd_knots)
-            };
-            let mut s = fit_with(&spread, &unit, &|_| Vec3::repeat(1.0))?;
-            let mut sd = spread_sd(&s);
-            for _ in 0..2 {
-                let Some(noise) = sd.clone() else { break };
-                let w_at = |u: f64| noise.sd(u).map(|s| 1.0 / (s * s));
-                let w = |k: usize| w_at(data.u[k]);
-                s = fit_with(&spread, &w, &w_at)?;
-                sd = spread_sd(&s);
+        let estimation = match &self.0.family {
+            Family::LocalLinear { estimation, .. } | Family::Automatic { estimation, .. } => {
+                Some(*estimation)
             }
-            // The structure stays as the spread rows chose it; its coefficients take every row.
-            let estimation = match &self.0.family {
-                Family::LocalLinear { estimation, .. } | Family::Automatic { estimation, .. } => {
-                    *estimation
-                }
-                _ => Estimation::Global,
-            };
-            if let Structure::LocalLinear(net) = &s {
-                let net = match sd {
-                    Some(noise) => {
-                        let w = |k: usize| noise.sd(data.u[k]).map(|s| 1.0 / (s * s));
-                        local_linear::fit(data, &net.partition, estimation, rows, &w)?
-                    }
-                    None => local_linear::fit(data, &net.partition, estimation, rows, &unit)?,
-                };
-                s = Structure::LocalLinear(net);
+            _ => None,
+        };
+        let reweight = self.0.weighted && estimation.is_some();
+        // A long recording settles its noise weights on the rows its structure search uses,
+        // then fits the weighted coefficients on every row once (after the passes).
+        let sampled = reweight && stride > 1;
+        let spread = |k: usize| k.is_multiple_of(stride) && rows(k);
+        let on: &dyn Fn(usize) -> bool = if sampled { &spread } else { rows };
+        // The noise model of a structure's residuals on `on`, with every row's residuals when
+        // `on` is every row.
+        let noise_of = |s: &Structure| -> (Option<SdModel>, Option<Vec<Vec3>>) {
+            if sampled {
+                let r = model_of(s).residuals_at(data, &spread);
+                (SdModel::fit(&data.u, &r, spread, self.0.sd_knots), None)
+            } else {
+                let (sd, r) = residual_sd(s);
+                (sd, Some(r))
             }
-            let (sd, r) = residual_sd(&s);
-            return Ok((s, sd, Some(r)));
-        }
-        let mut s = fit_with(rows, &unit, &|_| Vec3::repeat(1.0))?;
+        };
+        let inverse_variance = |noise: &SdModel, u: f64| noise.sd(u).map(|s| 1.0 / (s * s));
+        let mut s = fit_with(on, &unit, &|_| Vec3::repeat(1.0))?;
         // The noise model costs a pass over the data: only when it weights or is kept.
         if !reweight && !want_sd {
             return Ok((s, None, None));
         }
-        let (mut sd, mut r) = residual_sd(&s);
+        let (mut sd, mut r) = noise_of(&s);
         if reweight {
             // Two reweighting passes: the second noise model comes from residuals of a fit that
             // no longer over-follows the noisiest samples.
             for _ in 0..2 {
                 let Some(noise) = sd.clone() else { break };
-                let w_at = |u: f64| noise.sd(u).map(|s| 1.0 / (s * s));
+                let w_at = |u: f64| inverse_variance(&noise, u);
                 let w = |k: usize| w_at(data.u[k]);
-                s = fit_with(rows, &w, &w_at)?;
-                (sd, r) = residual_sd(&s);
+                s = fit_with(on, &w, &w_at)?;
+                (sd, r) = noise_of(&s);
             }
         }
-        Ok((s, sd, Some(r)))
+        if sampled {
+            // The structure stays as the spread rows chose it; its coefficients take every row.
+            if let (Structure::LocalLinear(net), Some(estimation)) = (&s, estimation) {
+                let w = |k: usize| {
+                    sd.as_ref().map_or(Vec3::repeat(1.0), |noise| {
+                        inverse_variance(noise, data.u[k])
+                    })
+                };
+                let net = local_linear::fit(data, &net.partition, estimation, rows, &w)?;
+                s = Structure::LocalLinear(net);
+            }
+            let (all_sd, all_r) = residual_sd(&s);
+            (sd, r) = (all_sd, Some(all_r));
+        }
+        Ok((s, sd, r))
     }
 }
 

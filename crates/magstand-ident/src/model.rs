@@ -280,13 +280,11 @@ impl Model {
     /// Residuals of identification data, `y - (output - off output)`: what the model leaves
     /// of the eq. 9 deviations.
     pub fn residuals(&self, data: &crate::Dataset) -> Vec<Vec3> {
+        let Some(index) = data.group_index() else {
+            return self.residuals_at(data, &|_| true);
+        };
         let mut s = self.scratch();
         let off = self.off_output(&mut s);
-        let Some(index) = data.group_index() else {
-            return (0..data.len())
-                .map(|k| data.y[k] - (self.output(data.u[k], data.regressors(k), &mut s.phi) - off))
-                .collect();
-        };
         // Rows of equal input and regressors have equal outputs: one evaluation per group.
         let fitted: Vec<Vec3> = index
             .first_row

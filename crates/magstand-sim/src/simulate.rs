@@ -61,19 +61,40 @@ pub fn simulate(s: &ValidScenario, seed: u64) -> Recording {
 pub fn simulate_observed(s: &ValidScenario, seed: u64, observer: &mut dyn Observer) -> Recording {
     let mut world = StandWorld::new(1.0 / s.params().physics_hz);
     let mut run = Run::new(s, seed, &mut world);
+    run_together(std::slice::from_mut(&mut run), &mut world, observer);
+    run.rec
+}
+
+/// Steps the runs of one world to their ends, reporting the longest one's progress: each run
+/// sets its forces, one world step serves them all, and each reads its body back. A run's body
+/// leaves the world after its last step.
+fn run_together(batch: &mut [Run], world: &mut StandWorld, observer: &mut dyn Observer) {
     world.step();
-    run.read_body(&mut world);
-    let progress_every = (run.steps / 200).max(1);
-    for k in 0..run.steps {
-        run.advance(k, &mut world);
+    for run in batch.iter_mut() {
+        run.read_body(world);
+    }
+    let Some(longest) = batch.iter().max_by_key(|r| r.steps) else {
+        return;
+    };
+    let (steps, dt, duration_s) = (longest.steps, longest.dt, longest.duration_s);
+    let progress_every = (steps / 200).max(1);
+    for k in 0..steps {
+        for run in batch.iter_mut().filter(|r| k < r.steps) {
+            run.advance(k, world);
+        }
         world.step();
-        run.read_body(&mut world);
+        for run in batch.iter_mut().filter(|r| k < r.steps) {
+            run.read_body(world);
+            if k + 1 == run.steps {
+                // Its run is over: the body would only cost pipeline time.
+                world.remove(run.handle);
+            }
+        }
         if k % progress_every == 0 {
-            observer.progress(k as f64 * run.dt, run.duration_s);
+            observer.progress(k as f64 * dt, duration_s);
         }
     }
-    observer.progress(run.duration_s, run.duration_s);
-    run.rec
+    observer.progress(duration_s, duration_s);
 }
 
 /// Simulates several scenarios, each with its own seed, their stands sharing one rapier world.
@@ -99,24 +120,7 @@ pub fn simulate_batch(runs: &[(&ValidScenario, u64)]) -> Vec<Recording> {
             .iter()
             .map(|&i| Run::new(runs[i].0, runs[i].1, &mut world))
             .collect();
-        world.step();
-        for run in batch.iter_mut() {
-            run.read_body(&mut world);
-        }
-        let longest = batch.iter().map(|r| r.steps).max().unwrap_or(0);
-        for k in 0..longest {
-            for run in batch.iter_mut().filter(|r| k < r.steps) {
-                run.advance(k, &mut world);
-            }
-            world.step();
-            for run in batch.iter_mut().filter(|r| k < r.steps) {
-                run.read_body(&mut world);
-                if k + 1 == run.steps {
-                    // Its run is over: the body would only cost pipeline time.
-                    world.remove(run.handle);
-                }
-            }
-        }
+        run_together(&mut batch, &mut world, &mut Silent);
         for (run, &i) in batch.into_iter().zip(&members) {
             out[i] = Some(run.rec);
         }
@@ -216,6 +220,7 @@ impl<'a> Run<'a> {
             ..Recording::default()
         };
         let avionics_a = p.supply.avionics_current_a();
+        let parts = modules(p);
         Self {
             p,
             program,
@@ -234,8 +239,8 @@ impl<'a> Run<'a> {
             motors,
             noise_rng: stream_rng(seed, Stream::Noise),
             supply: SupplyState::default(),
-            parts: modules(p),
-            module_fields: vec![Vec3::zeros(); modules(p).len()],
+            module_fields: vec![Vec3::zeros(); parts.len()],
+            parts,
             handle,
             body: BodyState {
                 attitude: p.stand.rest_attitude(),

@@ -63,7 +63,7 @@ pub use config::{Shard, StudyConfig, ValidStudy};
 pub use error::{StudyError, StudySetting};
 pub use run::{MethodOutcome, identification_series};
 pub use study_info::StudyInfo;
-pub use summary::{FIGURE_NAMES, FigureId, Summary};
+pub use summary::{FIGURE_NAMES, FigureId, Summary, format_figure};
 pub use sweep::{SWEEP_FILE, ValidSweep, sweep_csv, sweep_rows};
 
 /// Receives progress from a running study; kept apart from the study so a command line can

@@ -149,6 +149,11 @@ pub const FIGURE_NAMES: [&str; 7] = [
     FigureId::HeadingAfterDeg.name(),
 ];
 
+/// A figure as tables print it: `digits` decimals, or `-` where there is none.
+pub fn format_figure(v: Option<f64>, digits: usize) -> String {
+    v.map_or("-".into(), |v| format!("{v:.digits$}"))
+}
+
 /// A named figure's stats.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Figure {

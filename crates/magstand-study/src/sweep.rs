@@ -3,7 +3,7 @@
 //! tabulated against the value in `sweep.csv`, to choose a calibration procedure.
 use magstand_sim::ValidScenario;
 
-use crate::summary::{FigureId, Summary};
+use crate::summary::{FigureId, Summary, format_figure};
 use crate::{StudyConfig, StudyError, StudySetting, ValidStudy};
 
 /// The sweep's table, written beside one folder per value.
@@ -90,10 +90,6 @@ impl ValidSweep {
     }
 }
 
-fn fmt_opt(v: Option<f64>, digits: usize) -> String {
-    v.map_or("-".into(), |v| format!("{v:.digits$}"))
-}
-
 /// The sweep's rows, one per value and method: value, method, median and 95th percentile of
 /// the disturbance RMSE (µT), median worst heading error after compensation (degrees), and the
 /// efficiency against the Cramer-Rao bound, formatted as `sweep.csv` writes them.
@@ -105,10 +101,10 @@ pub fn sweep_rows(table: &[(String, Summary)]) -> Vec<[String; 6]> {
             rows.push([
                 v.clone(),
                 m.method.clone(),
-                fmt_opt(r.map(|r| r.p50), 4),
-                fmt_opt(r.map(|r| r.p95), 4),
-                fmt_opt(m.figure(FigureId::HeadingAfterDeg).map(|h| h.p50), 3),
-                fmt_opt(m.crlb_ratio, 3),
+                format_figure(r.map(|r| r.p50), 4),
+                format_figure(r.map(|r| r.p95), 4),
+                format_figure(m.figure(FigureId::HeadingAfterDeg).map(|h| h.p50), 3),
+                format_figure(m.crlb_ratio, 3),
             ]);
         }
     }
