@@ -49,13 +49,28 @@ pub enum SimError {
 /// Range checks with messages that name the dotted key, shared by every parameter block.
 pub(crate) struct Checker<'a> {
     pub origin: &'a str,
+    /// The table the keys are in (`thermal`), written before each key with a dot; empty for
+    /// keys given in full.
+    pub table: &'a str,
 }
 
-impl Checker<'_> {
+impl<'a> Checker<'a> {
+    /// The same checks for the keys of `table`, given without it.
+    pub fn in_table(&self, table: &'a str) -> Checker<'a> {
+        Checker {
+            origin: self.origin,
+            table,
+        }
+    }
+
     pub fn fail(&self, key: &str, value: impl std::fmt::Display, expected: &str) -> SimError {
         SimError::InvalidSetting {
             origin: self.origin.to_string(),
-            key: key.to_string(),
+            key: if self.table.is_empty() {
+                key.to_string()
+            } else {
+                format!("{}.{key}", self.table)
+            },
             value: value.to_string(),
             expected: expected.to_string(),
         }

@@ -29,14 +29,21 @@ impl Default for HysteresisParams {
     }
 }
 
-impl HysteresisParams {
-    pub(crate) fn check(&self, c: &Checker) -> Result<(), SimError> {
-        c.range("hysteresis.play_a", self.play_a, 0.0, 1000.0)?;
+impl crate::stand_module::ModuleParams for HysteresisParams {
+    fn table(&self) -> &'static str {
+        "hysteresis"
+    }
+    /// Keys without the table's name: the checker adds it.
+    fn check(&self, c: &Checker) -> Result<(), SimError> {
+        c.range("play_a", self.play_a, 0.0, 1000.0)?;
         c.within3(
-            "hysteresis.gain_ut_per_a",
+            "gain_ut_per_a",
             self.gain_ut_per_a,
             crate::MAX_GAIN_UT_PER_A,
         )
+    }
+    fn build(&self) -> Box<dyn crate::stand_module::StandModule> {
+        Box::new(HysteresisModule::new(self))
     }
 }
 

@@ -293,6 +293,12 @@ fn parse_error(origin: &str, e: impl std::fmt::Display) -> SimError {
 }
 
 impl Scenario {
+    /// The stand modules' tables, in the order their fields are added at the sensor. A new
+    /// stand module is registered here, with one line; its check and its module follow.
+    pub(crate) fn module_params(&self) -> [&dyn crate::stand_module::ModuleParams; 2] {
+        [&self.hysteresis, &self.thermal]
+    }
+
     /// Parses scenario TOML; `origin` names it in errors.
     pub fn from_toml_str(text: &str, origin: &str) -> Result<Self, SimError> {
         let mut s: Scenario = toml::from_str(text).map_err(|e| match misfit_key(text, &e) {
@@ -410,7 +416,7 @@ impl Scenario {
         origin: &str,
         base_dir: Option<&Path>,
     ) -> Result<ValidScenario, SimError> {
-        let c = Checker { origin };
+        let c = Checker { origin, table: "" };
         c.range("physics_hz", self.physics_hz, 10.0, 100_000.0)?;
         self.program.check(&c, self.motors.count)?;
         c.range(
@@ -435,8 +441,9 @@ impl Scenario {
         )?;
         c.range("disturbance.scale", self.disturbance.scale, -100.0, 100.0)?;
         self.noise.check(&c)?;
-        self.thermal.check(&c)?;
-        self.hysteresis.check(&c)?;
+        for module in self.module_params() {
+            module.check(&c.in_table(module.table()))?;
+        }
         self.interference.check(&c)?;
         self.stand.check(&c, self.physics_hz)?;
         self.motion.check(&c)?;

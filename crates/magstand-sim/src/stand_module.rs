@@ -3,13 +3,16 @@
 //! ([`crate::simulate`]) and the replay ([`crate::replay`]) both iterate.
 //!
 //! A module has a state, advances it with the electrical state, adds a field at the sensor,
-//! and names the trace column its state is recorded in. A new physical effect is one such
-//! file (its parameters, its state and its `impl StandModule`) registered in [`modules`] with
-//! one line, plus its diagnosis file in `magstand-diagnose/src/effects/` registered in that
-//! crate's catalog. Its parameters still need a field in [`crate::Scenario`] and a line in its
-//! check; see the README's worked example.
+//! and names the trace column its state is recorded in. Its parameters, a scenario table, say
+//! how they are checked and build the module ([`ModuleParams`]). A new physical effect is one
+//! such file (its parameters, its state, `impl ModuleParams` and `impl StandModule`), its table
+//! as a field of [`crate::Scenario`], and one line in `Scenario::module_params`, which both the
+//! scenario's check and [`modules`] iterate; plus its diagnosis file in
+//! `magstand-diagnose/src/effects/` registered in that crate's catalog. See the README's worked
+//! example.
 use magstand_core::Vec3;
 
+use crate::error::{Checker, SimError};
 use crate::scenario::Scenario;
 
 /// What a module sees of the electrical state at a step.
@@ -37,12 +40,20 @@ pub trait StandModule: std::fmt::Debug + Send {
     fn through_soft_iron(&self) -> bool;
 }
 
+/// A stand module's scenario table: its keys checked, and the module built from them.
+pub(crate) trait ModuleParams: std::fmt::Debug {
+    /// The scenario table's name (`thermal`), the prefix of every key its check names.
+    fn table(&self) -> &'static str;
+    /// Checks every value against its allowed range, naming the key of the first that is not;
+    /// `c` writes the table's name before each key.
+    fn check(&self, c: &Checker) -> Result<(), SimError>;
+    /// The module in its starting state.
+    fn build(&self) -> Box<dyn StandModule>;
+}
+
 /// Every module of the stand `s` describes, in the order their fields are added.
 pub fn modules(s: &Scenario) -> Vec<Box<dyn StandModule>> {
-    vec![
-        Box::new(crate::hysteresis::HysteresisModule::new(&s.hysteresis)),
-        Box::new(crate::thermal::ThermalModule::new(&s.thermal)),
-    ]
+    s.module_params().iter().map(|p| p.build()).collect()
 }
 
 /// The state of the module recording `column`, if there is one.
@@ -74,5 +85,21 @@ mod tests {
             Some(s.thermal.ambient_c)
         );
         assert_eq!(state_of(&all, "nothing"), None);
+    }
+
+    #[test]
+    fn a_module_table_is_checked_through_its_registration() {
+        let text = "name = \"t\"\n[program]\nkind = \"stair\"\nsteps = 5\ndwell_s = 2.0\n\
+                    [hysteresis]\nplay_a = -1.0\n";
+        let e = Scenario::from_toml_str(text, "inline")
+            .unwrap()
+            .check("inline", None)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("hysteresis.play_a"), "{e}");
+        let s = Scenario::from_toml_str(text.replace("-1.0", "1.0").as_str(), "inline").unwrap();
+        let tables: Vec<_> = s.module_params().iter().map(|p| p.table()).collect();
+        assert_eq!(tables, ["hysteresis", "thermal"]);
+        assert_eq!(modules(&s).len(), tables.len());
     }
 }

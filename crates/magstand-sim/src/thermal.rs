@@ -37,18 +37,27 @@ impl Default for ThermalParams {
     }
 }
 
-impl ThermalParams {
-    pub(crate) fn check(&self, c: &Checker) -> Result<(), SimError> {
-        c.range("thermal.ambient_c", self.ambient_c, -60.0, 100.0)?;
-        c.positive("thermal.tau_s", self.tau_s)?;
-        c.range("thermal.rise_c_per_w", self.rise_c_per_w, 0.0, 10.0)?;
+impl crate::stand_module::ModuleParams for ThermalParams {
+    fn table(&self) -> &'static str {
+        "thermal"
+    }
+    /// Keys without the table's name: the checker adds it.
+    fn check(&self, c: &Checker) -> Result<(), SimError> {
+        c.range("ambient_c", self.ambient_c, -60.0, 100.0)?;
+        c.positive("tau_s", self.tau_s)?;
+        c.range("rise_c_per_w", self.rise_c_per_w, 0.0, 10.0)?;
         c.within3(
-            "thermal.offset_ut_per_c",
+            "offset_ut_per_c",
             self.offset_ut_per_c,
             crate::MAX_GAIN_UT_PER_A,
         )
     }
+    fn build(&self) -> Box<dyn crate::stand_module::StandModule> {
+        Box::new(ThermalModule::new(self))
+    }
+}
 
+impl ThermalParams {
     /// Offset at temperature `temp_c`, µT (zero when disabled).
     pub fn offset_ut(&self, temp_c: f64) -> Vec3 {
         if self.enabled {
