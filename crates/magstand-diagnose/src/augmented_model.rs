@@ -166,6 +166,16 @@ impl AugmentedModel {
         Ok(m)
     }
 
+    /// [`AugmentedModel::from_json`] on a document already parsed.
+    pub fn from_value(value: serde_json::Value, path: &Path) -> Result<Self, DiagnoseError> {
+        let m: AugmentedModel =
+            versioned_json::parse_value(value, path, FORMAT, VERSION, |m: &Self| {
+                (m.format.as_str(), m.version)
+            })?;
+        m.validate(path)?;
+        Ok(m)
+    }
+
     /// The rules every model file follows, checked where it is read and where it is written.
     fn validate(&self, path: &Path) -> Result<(), DiagnoseError> {
         let m = self;

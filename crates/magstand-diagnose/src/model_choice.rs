@@ -263,17 +263,24 @@ impl DisturbanceModel {
                 path: path.to_path_buf(),
                 source,
             })?;
-        let declared = serde_json::from_str::<serde_json::Value>(&text)
-            .ok()
-            .and_then(|v| v.get("format")?.as_str().map(String::from));
-        if declared.as_deref() == Some(crate::augmented_model::FORMAT) {
+        let origin = path.display().to_string();
+        // Parsed once: the declared format picks the reader of the same document.
+        let value: serde_json::Value = match serde_json::from_str(&text) {
+            Ok(v) => v,
+            // Not JSON: the model reader's error says so, naming the file.
+            Err(_) => {
+                return Ok(DisturbanceModel::LocalLinear(Box::new(Model::from_json(
+                    &text, &origin,
+                )?)));
+            }
+        };
+        if value.get("format").and_then(|f| f.as_str()) == Some(crate::augmented_model::FORMAT) {
             return Ok(DisturbanceModel::Physics(Box::new(
-                AugmentedModel::from_json(&text, path)?,
+                AugmentedModel::from_value(value, path)?,
             )));
         }
-        Ok(DisturbanceModel::LocalLinear(Box::new(Model::from_json(
-            &text,
-            &path.display().to_string(),
+        Ok(DisturbanceModel::LocalLinear(Box::new(Model::from_value(
+            value, &origin,
         )?)))
     }
 

@@ -40,6 +40,29 @@ pub(crate) fn parse<T: DeserializeOwned>(
     head: impl Fn(&T) -> (&str, u32),
 ) -> Result<T, DiagnoseError> {
     let value: T = serde_json::from_str(text).map_err(|e| malformed(path, e.to_string()))?;
+    checked(value, path, format, version, head)
+}
+
+/// A document already parsed as JSON, read as [`parse`] reads text.
+pub(crate) fn parse_value<T: DeserializeOwned>(
+    value: serde_json::Value,
+    path: &Path,
+    format: &str,
+    version: u32,
+    head: impl Fn(&T) -> (&str, u32),
+) -> Result<T, DiagnoseError> {
+    let value: T = serde_json::from_value(value).map_err(|e| malformed(path, e.to_string()))?;
+    checked(value, path, format, version, head)
+}
+
+/// `value` if its `(format, version)` are the expected ones.
+fn checked<T>(
+    value: T,
+    path: &Path,
+    format: &str,
+    version: u32,
+    head: impl Fn(&T) -> (&str, u32),
+) -> Result<T, DiagnoseError> {
     let (f, v) = head(&value);
     if f != format || v != version {
         return Err(malformed(

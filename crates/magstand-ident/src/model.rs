@@ -432,12 +432,20 @@ impl Model {
 
     /// Parses a model from JSON text.
     pub fn from_json(text: &str, origin: &str) -> Result<Self, IdentError> {
+        let v: serde_json::Value =
+            serde_json::from_str(text).map_err(|e| IdentError::ModelFile {
+                origin: origin.into(),
+                message: format!("not JSON: {e}"),
+            })?;
+        Self::from_value(v, origin)
+    }
+
+    /// [`Model::from_json`] on a document already parsed.
+    pub fn from_value(v: serde_json::Value, origin: &str) -> Result<Self, IdentError> {
         let err = |message: String| IdentError::ModelFile {
             origin: origin.into(),
             message,
         };
-        let v: serde_json::Value =
-            serde_json::from_str(text).map_err(|e| err(format!("not JSON: {e}")))?;
         if v.get("format").and_then(|f| f.as_str()) != Some(FORMAT) {
             return Err(err(format!(
                 "not a magstand model (expected \"format\": \"{FORMAT}\")"

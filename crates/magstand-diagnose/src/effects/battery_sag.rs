@@ -8,6 +8,16 @@ use crate::optimize::{Search, minimize};
 /// The supply is a battery whose voltage falls with the charge drawn and under load.
 pub struct BatterySag;
 
+nonlinear_params! {
+    /// The battery standing in for the supply, where no voltage is logged.
+    Battery {
+        /// Internal resistance, ohm.
+        internal_resistance_ohm,
+        /// Capacity, Ah.
+        capacity_ah,
+    }
+}
+
 fn searches() -> Vec<Search> {
     vec![
         Search {
@@ -38,11 +48,11 @@ fn cells(nominal: &Scenario) -> u32 {
     }
 }
 
-fn set_battery(ctx: &Context, s: &mut Scenario, theta: &[f64]) {
+fn set_battery(ctx: &Context, s: &mut Scenario, b: Battery) {
     s.supply = SupplyParams::Battery {
         cells: cells(ctx.nominal),
-        capacity_ah: theta[1],
-        internal_resistance_ohm: theta[0],
+        capacity_ah: b.capacity_ah,
+        internal_resistance_ohm: b.internal_resistance_ohm,
         initial_charge: 1.0,
         avionics_current_a: ctx.nominal.supply.avionics_current_a(),
     };
@@ -55,11 +65,11 @@ impl BatterySag {
         &self,
         ctx: &Context,
         s: &Scenario,
-    ) -> Option<(Vec<f64>, Vec<Option<f64>>)> {
+    ) -> Option<(Battery, Battery<Option<f64>>)> {
         let v = ctx.rec.bat_v.as_deref()?;
         let o = minimize(&searches(), |theta| {
             let mut b = s.clone();
-            set_battery(ctx, &mut b, theta);
+            set_battery(ctx, &mut b, Battery::from_slice(theta)?);
             let tr = replay(&b, &ctx.rec.t_s, &ctx.rec.thr, None, ctx.command_lead);
             Some(
                 tr.voltage_v
@@ -69,7 +79,7 @@ impl BatterySag {
                     .sum(),
             )
         })?;
-        Some((o.theta, o.sd))
+        Some((Battery::from_slice(&o.theta)?, Battery::from_slice(&o.sd)?))
     }
 }
 
@@ -81,6 +91,9 @@ impl Effect for BatterySag {
         "The battery voltage falls with the charge drawn and sags under load, so at a fixed \
          command the motor currents, and the field they make, drift down over a run."
     }
+    fn parameters(&self) -> &'static [&'static str] {
+        Battery::NAMES
+    }
     fn search(&self, ctx: &Context) -> Vec<Search> {
         if ctx.rec.bat_v.is_some() {
             Vec::new()
@@ -89,26 +102,33 @@ impl Effect for BatterySag {
         }
     }
     fn apply(&self, ctx: &Context, s: &mut Scenario, theta: &[f64]) {
-        if ctx.rec.bat_v.is_none() {
-            set_battery(ctx, s, theta);
+        if ctx.rec.bat_v.is_none()
+            && let Some(b) = Battery::from_slice(theta)
+        {
+            set_battery(ctx, s, b);
         }
     }
     fn uses_recorded_voltage(&self, ctx: &Context) -> bool {
         ctx.rec.bat_v.is_some()
     }
     fn switch_on(&self, ctx: &Context, s: &mut Scenario, f: &EffectFit) -> Vec<Param> {
-        let (theta, sd) = if ctx.rec.bat_v.is_none() {
-            (f.theta.to_vec(), f.theta_sd.to_vec())
+        let fitted = if ctx.rec.bat_v.is_none() {
+            Battery::from_slice(f.theta).zip(Battery::from_slice(f.theta_sd))
         } else {
-            match self.fit_to_recorded_voltage(ctx, s) {
-                Some(fit) => fit,
-                None => return Vec::new(),
-            }
+            self.fit_to_recorded_voltage(ctx, s)
         };
-        set_battery(ctx, s, &theta);
+        let Some((b, sd)) = fitted else {
+            return Vec::new();
+        };
+        set_battery(ctx, s, b);
         vec![
-            Param::new("internal_resistance_ohm", theta[0], sd[0], "ohm"),
-            Param::new("capacity_ah", theta[1], sd[1], "Ah"),
+            Param::new(
+                "internal_resistance_ohm",
+                b.internal_resistance_ohm,
+                sd.internal_resistance_ohm,
+                "ohm",
+            ),
+            Param::new("capacity_ah", b.capacity_ah, sd.capacity_ah, "Ah"),
             Param::new("cells", cells(ctx.nominal) as f64, None, "cells in series"),
         ]
     }

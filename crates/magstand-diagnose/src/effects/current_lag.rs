@@ -13,6 +13,14 @@ pub const MAX_SPINUP_S: f64 = 0.3;
 /// nominal one.
 pub struct CurrentLag;
 
+nonlinear_params! {
+    /// The motors' spin-up.
+    SpinUp {
+        /// First-order time constant of the current after a command step, s.
+        spinup_tau_s,
+    }
+}
+
 impl Effect for CurrentLag {
     fn name(&self) -> &'static str {
         "current_lag"
@@ -20,6 +28,9 @@ impl Effect for CurrentLag {
     fn explanation(&self) -> &'static str {
         "The rotors take time to spin up and down, so motor current, and the field it makes, \
          follows each command step through a first-order lag."
+    }
+    fn parameters(&self) -> &'static [&'static str] {
+        SpinUp::NAMES
     }
     fn search(&self, _ctx: &Context) -> Vec<Search> {
         vec![Search {
@@ -35,16 +46,19 @@ impl Effect for CurrentLag {
         Some(("motors.spinup_tau_s", s.motors.spinup_tau_s))
     }
     fn beyond_calibration(&self, theta: &[f64]) -> Option<String> {
-        (theta[0] > MAX_SPINUP_S).then(|| {
+        let tau_s = SpinUp::from_slice(theta)?.spinup_tau_s;
+        (tau_s > MAX_SPINUP_S).then(|| {
             format!(
                 "The calibrated lag, {:.3} s, is slower than any motor spin-up ({MAX_SPINUP_S} s at \
                  most, for the largest propellers): something other than the rotors' inertia \
                  delays the current (a filtered current, a slow ESC ramp, the supply).",
-                theta[0]
+                tau_s
             )
         })
     }
     fn apply(&self, _ctx: &Context, s: &mut Scenario, theta: &[f64]) {
-        s.motors.spinup_tau_s = theta[0];
+        if let Some(p) = SpinUp::from_slice(theta) {
+            s.motors.spinup_tau_s = p.spinup_tau_s;
+        }
     }
 }

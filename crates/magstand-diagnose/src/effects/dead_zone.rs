@@ -6,6 +6,14 @@ use crate::optimize::Search;
 /// The ESCs start the motors at a command other than the nominal one.
 pub struct DeadZone;
 
+nonlinear_params! {
+    /// Where the ESCs start driving the motors.
+    Start {
+        /// Command below which no motor turns, 0..1.
+        dead_zone,
+    }
+}
+
 impl Effect for DeadZone {
     fn name(&self) -> &'static str {
         "dead_zone"
@@ -13,6 +21,9 @@ impl Effect for DeadZone {
     fn explanation(&self) -> &'static str {
         "The ESCs start driving the motors at a different command than the simulation assumes, \
          so current, and the field, begins at another throttle."
+    }
+    fn parameters(&self) -> &'static [&'static str] {
+        Start::NAMES
     }
     fn search(&self, _ctx: &Context) -> Vec<Search> {
         vec![Search {
@@ -28,6 +39,8 @@ impl Effect for DeadZone {
         Some(("motors.dead_zone", s.motors.dead_zone))
     }
     fn apply(&self, _ctx: &Context, s: &mut Scenario, theta: &[f64]) {
-        s.motors.dead_zone = theta[0];
+        if let Some(p) = Start::from_slice(theta) {
+            s.motors.dead_zone = p.dead_zone;
+        }
     }
 }

@@ -7,6 +7,14 @@ use crate::optimize::Search;
 /// Magnetized steel near the sensor: the field differs going up and coming down.
 pub struct Hysteresis;
 
+nonlinear_params! {
+    /// The play operator's half-width.
+    Play {
+        /// Half-width, A of supply current.
+        play_a,
+    }
+}
+
 impl Effect for Hysteresis {
     fn name(&self) -> &'static str {
         "hysteresis"
@@ -14,6 +22,9 @@ impl Effect for Hysteresis {
     fn explanation(&self) -> &'static str {
         "Steel near the sensor is magnetized by the current's field and keeps part of it, so \
          the disturbance going up in throttle differs from the one coming down."
+    }
+    fn parameters(&self) -> &'static [&'static str] {
+        Play::NAMES
     }
     fn search(&self, ctx: &Context) -> Vec<Search> {
         let max_a = ctx
@@ -35,7 +46,9 @@ impl Effect for Hysteresis {
     fn apply(&self, _ctx: &Context, s: &mut Scenario, theta: &[f64]) {
         // The play operator's output is the regressor; the field comes from its coefficient.
         s.hysteresis.enabled = false;
-        s.hysteresis.play_a = theta[0];
+        if let Some(p) = Play::from_slice(theta) {
+            s.hysteresis.play_a = p.play_a;
+        }
     }
     fn regressors(&self, _ctx: &Context, trace: &Trace, _theta: &[f64]) -> Vec<(String, Vec<f64>)> {
         // The hysteresis module is always part of the stand; a trace without its column
@@ -46,10 +59,14 @@ impl Effect for Hysteresis {
         vec![("play_a".into(), play)]
     }
     fn switch_on(&self, _ctx: &Context, s: &mut Scenario, f: &EffectFit) -> Vec<Param> {
+        let (Some(play), Some(sd)) = (Play::from_slice(f.theta), Play::from_slice(f.theta_sd))
+        else {
+            return Vec::new();
+        };
         s.hysteresis.enabled = true;
-        s.hysteresis.play_a = f.theta[0];
+        s.hysteresis.play_a = play.play_a;
         s.hysteresis.gain_ut_per_a = f.coef[0];
-        let mut p = vec![Param::new("play_a", f.theta[0], f.theta_sd[0], "A")];
+        let mut p = vec![Param::new("play_a", play.play_a, sd.play_a, "A")];
         p.extend(Param::axes(
             "gain_ut_per_a",
             f.coef[0],

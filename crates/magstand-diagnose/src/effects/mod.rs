@@ -10,6 +10,34 @@ use serde::{Deserialize, Serialize};
 use crate::optimize::Search;
 use crate::split::Split;
 
+/// Declares an effect's nonlinear parameters as a struct with one named field per searched
+/// parameter, in the order its search holds them, so the effect reads `p.play_a` rather than
+/// `theta[0]`. The same struct names their uncertainties (`Play::<Option<f64>>`).
+macro_rules! nonlinear_params {
+    ($(#[$doc:meta])* $name:ident { $($(#[$fdoc:meta])* $field:ident),+ $(,)? }) => {
+        $(#[$doc])*
+        #[derive(Debug, Clone, Copy, PartialEq)]
+        pub(crate) struct $name<T = f64> {
+            $($(#[$fdoc])* pub(crate) $field: T,)+
+        }
+
+        impl $name {
+            /// The parameters' names, in the order the search holds them.
+            pub(crate) const NAMES: &'static [&'static str] = &[$(stringify!($field)),+];
+        }
+
+        impl<T: Copy> $name<T> {
+            /// Named values from the optimiser's slice (values or their uncertainties), in
+            /// search order; `None` unless the slice holds one value per parameter.
+            pub(crate) fn from_slice(values: &[T]) -> Option<Self> {
+                let mut it = values.iter().copied();
+                let p = Self { $($field: it.next()?,)+ };
+                it.next().is_none().then_some(p)
+            }
+        }
+    };
+}
+
 mod battery_sag;
 mod current_lag;
 mod dead_zone;
@@ -110,7 +138,14 @@ pub trait Effect: Sync + Send {
         true
     }
 
-    /// The nonlinear parameters searched (none when the effect is linear in its regressors).
+    /// The names of the nonlinear parameters it can search, in order (its
+    /// `nonlinear_params!` struct's names; none when it is linear in its regressors).
+    fn parameters(&self) -> &'static [&'static str] {
+        &[]
+    }
+
+    /// The nonlinear parameters searched on this recording: [`parameters`](Effect::parameters),
+    /// or none where a logged column stands in for them.
     fn search(&self, ctx: &Context) -> Vec<Search>;
 
     /// The stand constant this effect re-fits, as its scenario key and its value in `s`, for
@@ -214,6 +249,50 @@ mod tests {
                 "dead_zone"
             ]
         );
+    }
+
+    /// The names an effect declares are the ones it searches, in order; an effect that re-fits
+    /// a stand constant searches that constant alone (the stated-value test reads it as the
+    /// first value), under the key's own name.
+    #[test]
+    fn every_effect_searches_its_declared_parameters() {
+        let t_s: Vec<f64> = (0..2000).map(|k| k as f64 * 0.02).collect();
+        let thr: Vec<f64> = t_s
+            .iter()
+            .map(|t| ((t / 5.0).floor() / 8.0).min(1.0))
+            .collect();
+        let rec = Recording {
+            mag_ut: vec![magstand_core::Vec3::zeros(); t_s.len()],
+            thr: vec![thr],
+            overall_only: true,
+            t_s,
+            ..Default::default()
+        };
+        let nominal = crate::unstated_nominal().unwrap().into_inner();
+        let split = Split::new(&rec.t_s, None, 3);
+        let nominal_trace = magstand_sim::replay::replay(&nominal, &rec.t_s, &rec.thr, None, 0.5);
+        let ctx = Context {
+            rec: &rec,
+            nominal: &nominal,
+            split: &split,
+            nominal_trace: &nominal_trace,
+            rec_origin: "inline".into(),
+            command_lead: 0.5,
+            flight: false,
+            follow_recorded_voltage: false,
+        };
+        for e in catalog() {
+            let searched: Vec<_> = e.search(&ctx).iter().map(|s| s.name).collect();
+            assert_eq!(searched, e.parameters(), "effect {}", e.name());
+            if let Some((key, _)) = e.stand_constant(&nominal) {
+                assert_eq!(
+                    [key.rsplit('.').next().unwrap()],
+                    e.parameters(),
+                    "effect {}",
+                    e.name()
+                );
+            }
+        }
     }
 
     #[test]

@@ -7,6 +7,14 @@ use crate::optimize::{Search, minimize};
 /// The board heats with the power drawn and the sensor offset moves with temperature.
 pub struct ThermalDrift;
 
+nonlinear_params! {
+    /// The board's heating, where no temperature is logged.
+    Heating {
+        /// The board's time constant, s.
+        tau_s,
+    }
+}
+
 fn tau_search() -> Search {
     Search {
         name: "tau_s",
@@ -63,6 +71,9 @@ impl Effect for ThermalDrift {
         "The board warms with the power drawn and cools over minutes, and the magnetometer's \
          offset moves with its temperature."
     }
+    fn parameters(&self) -> &'static [&'static str] {
+        Heating::NAMES
+    }
     fn search(&self, ctx: &Context) -> Vec<Search> {
         if ctx.rec.temp_c.is_some() {
             Vec::new()
@@ -74,10 +85,15 @@ impl Effect for ThermalDrift {
         match ctx.rec.temp_c.as_deref() {
             Some(t) => vec![("temp_rise_c".into(), t.iter().map(|v| v - t[0]).collect())],
             // Temperature rise per (°C/W): the lagged power, W.
-            None => vec![(
-                "lagged_power_w".into(),
-                first_order_lag(&trace.t_s, &power_w(trace), theta[0]),
-            )],
+            None => Heating::from_slice(theta)
+                .map(|h| {
+                    (
+                        "lagged_power_w".into(),
+                        first_order_lag(&trace.t_s, &power_w(trace), h.tau_s),
+                    )
+                })
+                .into_iter()
+                .collect(),
         }
     }
     fn switch_on(&self, ctx: &Context, s: &mut Scenario, f: &EffectFit) -> Vec<Param> {
@@ -99,10 +115,16 @@ impl Effect for ThermalDrift {
             }
             _ => {
                 // Only the product of rise and offset is seen: keep the nominal rise.
-                s.thermal.tau_s = f.theta.first().copied().unwrap_or(s.thermal.tau_s);
+                let (Some(heating), Some(sd)) = (
+                    Heating::from_slice(f.theta),
+                    Heating::from_slice(f.theta_sd),
+                ) else {
+                    return Vec::new();
+                };
+                s.thermal.tau_s = heating.tau_s;
                 let rise = s.thermal.rise_c_per_w.max(1e-6);
                 s.thermal.offset_ut_per_c = f.coef[0].map(|c| c / rise);
-                let mut p = vec![Param::new("tau_s", f.theta[0], f.theta_sd[0], "s")];
+                let mut p = vec![Param::new("tau_s", heating.tau_s, sd.tau_s, "s")];
                 p.extend(Param::axes(
                     "offset_ut_per_w",
                     f.coef[0],

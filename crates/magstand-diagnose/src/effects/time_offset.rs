@@ -6,6 +6,14 @@ use crate::optimize::Search;
 /// The magnetometer stream is logged late against the command stream.
 pub struct TimeOffset;
 
+nonlinear_params! {
+    /// The magnetometer stream's lateness.
+    Delay {
+        /// Delay of the magnetometer's stamps behind the commands', s.
+        mag_delay_s,
+    }
+}
+
 impl Effect for TimeOffset {
     fn name(&self) -> &'static str {
         "time_offset"
@@ -17,6 +25,9 @@ impl Effect for TimeOffset {
     fn applies(&self, ctx: &Context) -> bool {
         // A flight's baseline calibrates the delay (`flight.mag_delay_s`).
         !ctx.flight
+    }
+    fn parameters(&self) -> &'static [&'static str] {
+        Delay::NAMES
     }
     fn search(&self, ctx: &Context) -> Vec<Search> {
         // From one sample interval (shorter delays cannot be told from where in the interval
@@ -33,6 +44,8 @@ impl Effect for TimeOffset {
         }])
     }
     fn apply(&self, _ctx: &Context, s: &mut Scenario, theta: &[f64]) {
-        s.logging.mag_delay_s = theta[0];
+        if let Some(p) = Delay::from_slice(theta) {
+            s.logging.mag_delay_s = p.mag_delay_s;
+        }
     }
 }

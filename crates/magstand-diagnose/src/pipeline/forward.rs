@@ -136,6 +136,8 @@ fn refuse_within_stated(c: &mut Candidate, effect: &dyn Effect, ctx: &Context) {
     if !ctx.nominal.states(key) {
         return;
     }
+    // An effect that re-fits a stand constant searches that constant alone (asserted for the
+    // whole catalog by `every_effect_searches_its_declared_parameters`).
     let Some((theta, sd, _)) = &c.fitted else {
         return;
     };
