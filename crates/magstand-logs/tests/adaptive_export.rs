@@ -3,36 +3,14 @@
 //! and fed the same samples, it predicts the same disturbance, sample after sample, as
 //! [`magstand_ident::adaptive::Adaptive`].
 use magstand_core::Vec3;
-use magstand_core::rbf::paper_tables;
+use magstand_ident::{Model, Structure};
 use magstand_ident::adaptive::{AdaptConfig, Adaptive, ValidAdaptConfig};
-use magstand_ident::{InputKind, InputSpec, LocalLinearNet, Model, Structure};
 use magstand_logs::export::{c_adaptive, rust_adaptive};
+mod common;
+use common::{c_compiler, run_c, run_no_std_rust};
 
-/// The paper's Tables I-III as a throttle model (µT), with its motors-off field.
 fn paper_model() -> Model {
-    let t = paper_tables();
-    let net = LocalLinearNet {
-        partition: t[0].partition().clone(),
-        coefficients: std::array::from_fn(|a| {
-            (0..3)
-                .map(|i| vec![100.0 * t[a].slopes()[i], 100.0 * t[a].intercepts()[i]])
-                .collect()
-        }),
-    };
-    let input = InputSpec {
-        kind: InputKind::Throttle,
-        lo: 0.0,
-        hi: 1.0,
-        motors: 4,
-        off_raw: 0.0,
-    };
-    Model::new(
-        "global",
-        input,
-        Vec3::new(20.0, 1.0, 45.0),
-        Structure::LocalLinear(net),
-        None,
-    )
+    common::paper_model(None)
 }
 
 /// Samples of a stair whose disturbance is 1.2 times the model's (a drifted gain), with a
@@ -84,16 +62,6 @@ fn assert_same(text: &str, want: &[Vec3], what: &str) {
     assert!(want.first() != want.last());
 }
 
-fn run_ok(cmd: &mut std::process::Command) -> String {
-    let out = cmd.output().unwrap();
-    assert!(
-        out.status.success(),
-        "{cmd:?}: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8(out.stdout).unwrap()
-}
-
 fn sample_table(input: &[(f64, [f64; 3])], open: &str, close: &str) -> String {
     input
         .iter()
@@ -104,15 +72,7 @@ fn sample_table(input: &[(f64, [f64; 3])], open: &str, close: &str) -> String {
 
 #[test]
 fn the_c_recursion_predicts_what_the_rust_one_does() {
-    let cc = ["cc", "gcc", "clang"].into_iter().find(|c| {
-        std::process::Command::new(c)
-            .arg("--version")
-            .output()
-            .is_ok()
-    });
-    let Some(cc) = cc else {
-        assert!(std::env::var("CI").is_err(), "CI=true but no C compiler");
-        eprintln!("no C compiler: skipping");
+    let Some(cc) = c_compiler() else {
         return;
     };
     let model = paper_model();
@@ -128,67 +88,26 @@ fn the_c_recursion_predicts_what_the_rust_one_does() {
         "#include <stdio.h>\n#include \"magstand_adapt.h\"\nint main(void) {{\n  static const double in[][4] = {{{}}};\n  magstand_adapt_state s;\n  magstand_adapt_init(&s);\n  for (unsigned i = 0; i < sizeof in / sizeof in[0]; i++) {{\n    double d[3];\n    magstand_adapt_step(&s, in[i][0], &in[i][1], d);\n    printf(\"%.17g %.17g %.17g\\n\", d[0], d[1], d[2]);\n  }}\n  return 0;\n}}\n",
         sample_table(&input, "{", "}")
     );
-    std::fs::write(dir.path().join("main.c"), main).unwrap();
-    let exe = dir.path().join("eval");
-    run_ok(
-        std::process::Command::new(cc)
-            .args(["-std=c99", "-Wall", "-Werror", "-O2", "-o"])
-            .arg(&exe)
-            .arg(dir.path().join("main.c"))
-            .arg("-lm"),
-    );
-    let text = run_ok(&mut std::process::Command::new(&exe));
+    let text = run_c(cc, dir.path(), &main);
     assert_same(&text, &expected(&model, &cfg, &input), "C");
 }
 
 #[test]
 fn the_no_std_rust_recursion_predicts_what_magstand_does() {
-    let rustc = std::env::var("RUSTC").unwrap_or_else(|_| "rustc".into());
     let model = paper_model();
     let cfg = AdaptConfig { forgetting: 0.98 }.check().unwrap();
     let input = samples(&model);
     let dir = tempfile::tempdir().unwrap();
-    std::fs::write(
-        dir.path().join("magstand_adapt.rs"),
-        rust_adaptive(&model, &cfg).unwrap(),
-    )
-    .unwrap();
-    std::fs::write(
-        dir.path().join("lib.rs"),
-        "#![no_std]\n#![deny(warnings, missing_docs)]\n//! Firmware.\npub mod magstand_adapt;\n",
-    )
-    .unwrap();
-    run_ok(
-        std::process::Command::new(&rustc)
-            .args([
-                "--edition",
-                "2021",
-                "--crate-type",
-                "rlib",
-                "--crate-name",
-                "fw",
-                "-O",
-            ])
-            .arg("--out-dir")
-            .arg(dir.path())
-            .arg(dir.path().join("lib.rs")),
+    let main = format!(
+        "mod magstand_adapt;\nfn main() {{\n    let mut s = magstand_adapt::State::new();\n    for x in [{}] {{\n        let d = s.step(x[0], [x[1], x[2], x[3]]);\n        println!(\"{{:e}} {{:e}} {{:e}}\", d[0], d[1], d[2]);\n    }}\n}}\n",
+        sample_table(&input, "[", "]")
     );
-    std::fs::write(
-        dir.path().join("main.rs"),
-        format!(
-            "mod magstand_adapt;\nfn main() {{\n    let mut s = magstand_adapt::State::new();\n    for x in [{}] {{\n        let d = s.step(x[0], [x[1], x[2], x[3]]);\n        println!(\"{{:e}} {{:e}} {{:e}}\", d[0], d[1], d[2]);\n    }}\n}}\n",
-            sample_table(&input, "[", "]")
-        ),
-    )
-    .unwrap();
-    let exe = dir.path().join("eval");
-    run_ok(
-        std::process::Command::new(&rustc)
-            .args(["--edition", "2021", "-O", "-o"])
-            .arg(&exe)
-            .arg(dir.path().join("main.rs")),
+    let text = run_no_std_rust(
+        dir.path(),
+        "magstand_adapt",
+        &rust_adaptive(&model, &cfg).unwrap(),
+        &main,
     );
-    let text = run_ok(&mut std::process::Command::new(&exe));
     assert_same(&text, &expected(&model, &cfg, &input), "Rust");
 }
 

@@ -1,10 +1,11 @@
 //! Exports against known answers: a model that is a line gives that line back with PX4's and
 //! ArduPilot's units and signs; the C header, compiled by the system compiler, evaluates the
 //! same disturbance and sd as the Rust model.
-use magstand_core::rbf::paper_tables;
 use magstand_core::{Recording, Vec3};
 use magstand_ident::noise_model::SdModel;
 use magstand_ident::{InputKind, InputSpec, LocalLinearNet, Model, Structure};
+mod common;
+use common::{c_compiler, run_c, run_no_std_rust, throttle_input};
 use magstand_logs::export::json::export_json;
 use magstand_logs::export::per_motor::{per_motor_fit, per_motor_params};
 use magstand_logs::export::{
@@ -14,16 +15,6 @@ use magstand_logs::export::{
 
 fn line_of(model: &Model) -> Result<LinearFit, magstand_logs::LogsError> {
     linear_approximation(model, LineInput::of(model), Span::ModelRange)
-}
-
-fn throttle_input() -> InputSpec {
-    InputSpec {
-        kind: InputKind::Throttle,
-        lo: 0.0,
-        hi: 1.0,
-        motors: 4,
-        off_raw: 0.0,
-    }
 }
 
 fn value(text: &str, name: &str) -> f64 {
@@ -91,16 +82,8 @@ fn a_linear_model_exports_its_own_slope_with_the_autopilots_units_and_signs() {
     assert!((value(&ardupilot_params(&line, 1), "COMPASS_MOT_X") + 2.5).abs() < 1e-9);
 }
 
+/// The paper's tables with a noise model growing with throttle.
 fn paper_model() -> Model {
-    let t = paper_tables();
-    let net = LocalLinearNet {
-        partition: t[0].partition().clone(),
-        coefficients: std::array::from_fn(|a| {
-            (0..3)
-                .map(|i| vec![100.0 * t[a].slopes()[i], 100.0 * t[a].intercepts()[i]])
-                .collect()
-        }),
-    };
     let sd = SdModel {
         knots: (0..11).map(|k| k as f64 / 10.0).collect(),
         sd_ut: std::array::from_fn(|a| {
@@ -109,13 +92,7 @@ fn paper_model() -> Model {
                 .collect()
         }),
     };
-    Model::new(
-        "global",
-        throttle_input(),
-        Vec3::new(20.0, 1.0, 45.0),
-        Structure::LocalLinear(net),
-        Some(sd),
-    )
+    common::paper_model(Some(sd))
 }
 
 #[test]
@@ -159,16 +136,6 @@ fn assert_matches_model(text: &str, raws: &[f64], model: &Model, what: &str) {
     }
 }
 
-fn run_ok(cmd: &mut std::process::Command) -> String {
-    let out = cmd.output().unwrap();
-    assert!(
-        out.status.success(),
-        "{cmd:?}: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8(out.stdout).unwrap()
-}
-
 fn number_list(raws: &[f64]) -> String {
     raws.iter()
         .map(|r| format!("{r:e}"))
@@ -178,15 +145,7 @@ fn number_list(raws: &[f64]) -> String {
 
 #[test]
 fn the_c_header_evaluates_the_same_model_as_rust() {
-    let cc = ["cc", "gcc", "clang"].into_iter().find(|c| {
-        std::process::Command::new(c)
-            .arg("--version")
-            .output()
-            .is_ok()
-    });
-    let Some(cc) = cc else {
-        assert!(std::env::var("CI").is_err(), "CI=true but no C compiler");
-        eprintln!("no C compiler: skipping");
+    let Some(cc) = c_compiler() else {
         return;
     };
     let model = paper_model();
@@ -201,65 +160,27 @@ fn the_c_header_evaluates_the_same_model_as_rust() {
         "#include <stdio.h>\n#include \"magstand_model.h\"\nint main(void) {{\n  const double r[] = {{{}}};\n  for (unsigned i = 0; i < sizeof r / sizeof r[0]; i++) {{\n    double d[3], s[3];\n    magstand_dist(r[i], d);\n    magstand_sd(r[i], s);\n    printf(\"%.17g %.17g %.17g %.17g %.17g %.17g\\n\", d[0], d[1], d[2], s[0], s[1], s[2]);\n  }}\n  return 0;\n}}\n",
         number_list(&raws)
     );
-    std::fs::write(dir.path().join("main.c"), main).unwrap();
-    let exe = dir.path().join("eval");
-    run_ok(
-        std::process::Command::new(cc)
-            .args(["-std=c99", "-Wall", "-Werror", "-O2", "-o"])
-            .arg(&exe)
-            .arg(dir.path().join("main.c"))
-            .arg("-lm"),
-    );
-    let text = run_ok(&mut std::process::Command::new(&exe));
+    let text = run_c(cc, dir.path(), &main);
     assert_matches_model(&text, &raws, &model, "C header");
 }
 
 #[test]
 fn the_rust_module_builds_without_std_and_evaluates_the_same_model() {
-    let rustc = std::env::var("RUSTC").unwrap_or_else(|_| "rustc".into());
     let model = paper_model();
     let dir = tempfile::tempdir().unwrap();
-    let module = rust_module(&model).unwrap();
-    std::fs::write(dir.path().join("magstand_model.rs"), &module).unwrap();
-    // As a module of a no_std library, with every warning an error.
-    std::fs::write(
-        dir.path().join("lib.rs"),
-        "#![no_std]\n#![deny(warnings, missing_docs)]\n//! Firmware.\npub mod magstand_model;\n",
-    )
-    .unwrap();
-    run_ok(
-        std::process::Command::new(&rustc)
-            .args([
-                "--edition",
-                "2021",
-                "--crate-type",
-                "rlib",
-                "--crate-name",
-                "fw",
-                "-O",
-            ])
-            .arg("--out-dir")
-            .arg(dir.path())
-            .arg(dir.path().join("lib.rs")),
-    );
-    // And evaluated by a host program.
     let raws = firmware_raws();
-    std::fs::write(
-        dir.path().join("main.rs"),
-        format!(
-            "mod magstand_model;\nfn main() {{\n    for r in [{}] {{\n        let (d, s) = (magstand_model::dist_ut(r), magstand_model::sd_ut(r));\n        println!(\"{{:e}} {{:e}} {{:e}} {{:e}} {{:e}} {{:e}}\", d[0], d[1], d[2], s[0], s[1], s[2]);\n    }}\n}}\n",
-            number_list(&raws)
-        ),
-    )
-    .unwrap();
-    let exe = dir.path().join("eval");
-    run_ok(
-        std::process::Command::new(&rustc)
-            .args(["--edition", "2021", "-O", "-o"])
-            .arg(&exe)
-            .arg(dir.path().join("main.rs")),
+    let main = format!(
+        "mod magstand_model;\nfn main() {{\n    for r in [{}] {{\n        let (d, s) = (magstand_model::dist_ut(r), magstand_model::sd_ut(r));\n        println!(\"{{:e}} {{:e}} {{:e}} {{:e}} {{:e}} {{:e}}\", d[0], d[1], d[2], s[0], s[1], s[2]);\n    }}\n}}\n",
+        number_list(&raws)
     );
-    let text = run_ok(&mut std::process::Command::new(&exe));
+    // As a module of a no_std library, with every warning an error, then evaluated by a host
+    // program.
+    let text = run_no_std_rust(
+        dir.path(),
+        "magstand_model",
+        &rust_module(&model).unwrap(),
+        &main,
+    );
     assert_matches_model(&text, &raws, &model, "Rust module");
 }
 
