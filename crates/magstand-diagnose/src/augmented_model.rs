@@ -49,8 +49,8 @@ use crate::DiagnoseError;
 use crate::effects::{Context, Effect, catalog};
 use crate::fit::variance_at;
 use crate::pipeline::design::build_with_lead;
-use crate::split::Split;
 use crate::versioned_json;
+use magstand_core::held_out::Split;
 
 /// Format name of the file.
 pub const FORMAT: &str = "magstand-augmented-model";
@@ -317,7 +317,7 @@ impl AugmentedModel {
                 .ok_or_else(|| bad(format!("the model names an unknown effect `{}`", t.name)))?;
             terms.push((e.as_ref(), t.theta.as_slice()));
         }
-        let split = Split::new(&rec.t_s, Some(self.block_s), self.holdout_every);
+        let split = Split::new(&rec.t_s, self.block_s, self.holdout_every);
         let nominal_trace = replay(&nominal, &rec.t_s, &rec.thr, None, 0.5);
         let ctx = Context {
             rec,

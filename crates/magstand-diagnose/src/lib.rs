@@ -72,7 +72,6 @@ mod locate;
 pub mod model_choice;
 mod optimize;
 mod pipeline;
-pub mod split;
 mod stats;
 mod versioned_json;
 

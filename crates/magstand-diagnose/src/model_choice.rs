@@ -176,20 +176,9 @@ pub fn choose_model(
     );
     // The family every recording can take: its failure is the recording's, and says so.
     let throttle = throttle?;
-    // The split every family is judged on: the identification fit's held-out rows, less any
-    // the physics fit's own split (which closes gaps, so may differ after one) did not hold
-    // out when the physics was fitted.
-    let mut mask = throttle.2.clone();
-    if physics.is_ok() {
-        let physics_split = crate::split::Split::new(
-            &rec.t_s,
-            identification_split(rec).block_s,
-            magstand_ident::HOLDOUT_EVERY,
-        );
-        for (m, p) in mask.iter_mut().zip(&physics_split.holdout) {
-            *m &= *p;
-        }
-    }
+    // The split every family is judged on: the identification fit's held-out rows, which the
+    // physics fit held out too (one split, `magstand_core::held_out`, same blocks).
+    let mask = throttle.2.clone();
     let blocks = magstand_ident::time_blocks_of(&rec.t_s);
     let physics_residuals = physics.as_ref().map_err(Clone::clone).and_then(|p| {
         let reading = p

@@ -178,11 +178,18 @@ pub fn identification_block_s(t_s: &[f64]) -> f64 {
 /// The identification split's time block of each of the times `t_s` (ascending, not empty),
 /// of [`identification_block_s`].
 pub fn time_blocks_of(t_s: &[f64]) -> Vec<u64> {
-    let t0 = t_s[0];
-    let block = identification_block_s(t_s);
-    t_s.iter()
-        .map(|t| ((t - t0) / block).floor() as u64)
+    identification_split(t_s)
+        .block
+        .into_iter()
+        .map(|b| b as u64)
         .collect()
+}
+
+/// The identification's held-out split of the times `t_s` (ascending): blocks of
+/// [`identification_block_s`], every [`HOLDOUT_EVERY`]th held out, a gap in the data a block
+/// boundary ([`magstand_core::held_out::Split`], the split the diagnosis uses too).
+pub fn identification_split(t_s: &[f64]) -> magstand_core::held_out::Split {
+    magstand_core::held_out::Split::new(t_s, identification_block_s(t_s), HOLDOUT_EVERY)
 }
 
 /// Minimum rows a fit accepts.
@@ -323,10 +330,6 @@ impl Dataset {
     /// Splits rows into identification and held-out sets by time blocks: every fifth block is
     /// held out, so that held-out samples are not neighbours of fitted ones.
     pub fn holdout_mask(&self) -> Vec<bool> {
-        let every = HOLDOUT_EVERY as u64;
-        self.time_blocks()
-            .into_iter()
-            .map(|b| b % every == every - 1)
-            .collect()
+        identification_split(&self.t_s).holdout
     }
 }

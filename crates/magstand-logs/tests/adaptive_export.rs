@@ -3,8 +3,8 @@
 //! and fed the same samples, it predicts the same disturbance, sample after sample, as
 //! [`magstand_ident::adaptive::Adaptive`].
 use magstand_core::Vec3;
-use magstand_ident::{Model, Structure};
 use magstand_ident::adaptive::{AdaptConfig, Adaptive, ValidAdaptConfig};
+use magstand_ident::{Model, Structure};
 use magstand_logs::export::{c_adaptive, rust_adaptive};
 mod common;
 use common::{c_compiler, run_c, run_no_std_rust};

@@ -8,7 +8,7 @@ use magstand_sim::replay::Trace;
 use serde::{Deserialize, Serialize};
 
 use crate::optimize::Search;
-use crate::split::Split;
+use magstand_core::held_out::Split;
 
 /// Declares an effect's nonlinear parameters as a struct with one named field per searched
 /// parameter, in the order its search holds them, so the effect reads `p.play_a` rather than
@@ -269,7 +269,7 @@ mod tests {
             ..Default::default()
         };
         let nominal = crate::unstated_nominal().unwrap().into_inner();
-        let split = Split::new(&rec.t_s, None, 3);
+        let split = crate::pipeline::held_out_split(&rec.t_s, None, 3);
         let nominal_trace = magstand_sim::replay::replay(&nominal, &rec.t_s, &rec.thr, None, 0.5);
         let ctx = Context {
             rec: &rec,

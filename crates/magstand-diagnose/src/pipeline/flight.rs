@@ -6,7 +6,7 @@
 //!
 //! Only the rows with the motors running are kept (the `segment` column of `magstand import`:
 //! `off` rows are left out), and a gap between flights is a boundary between stretches of
-//! data ([`crate::split::Split`]), not a long sample interval.
+//! data ([`magstand_core::held_out::Split`]), not a long sample interval.
 use magstand_core::Recording;
 use magstand_ident::flight::{FlightConfig, is_flight, prepare_flight};
 

@@ -224,7 +224,7 @@ fn replication_failure(
         ("first", &(|b: usize| b < middle) as &dyn Fn(usize) -> bool),
         ("second", &|b: usize| b >= middle),
     ] {
-        let split = crate::split::Split {
+        let split = magstand_core::held_out::Split {
             holdout: ctx
                 .split
                 .holdout

@@ -4,8 +4,8 @@
 use magstand_core::Vec3;
 
 use crate::fit::Weights;
-use crate::split::Split;
 use crate::stats::{ljung_box, normal_sf, one_sided_t, signed_rank};
+use magstand_core::held_out::Split;
 
 /// Lags of the whiteness test.
 const LAGS: usize = 20;

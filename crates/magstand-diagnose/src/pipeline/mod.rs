@@ -23,8 +23,8 @@ use crate::diagnosis::Diagnosis;
 use crate::effects::{Context, catalog};
 use crate::fit::Weights;
 use crate::locate::Rows;
-use crate::split::Split;
 use crate::{DiagnoseConfig, DiagnoseError, ValidConfig};
+use magstand_core::held_out::Split;
 
 pub(crate) mod assembly;
 pub(crate) mod design;
@@ -95,6 +95,15 @@ pub(crate) fn diagnose_with(
     Ok(d)
 }
 
+/// The diagnosis's held-out split: blocks of `block_s`, or of 1/150 of the time with data
+/// (kept in 0.5..10 s), every `holdout_every`th held out.
+pub(crate) fn held_out_split(t_s: &[f64], block_s: Option<f64>, holdout_every: usize) -> Split {
+    let block_s = block_s.unwrap_or_else(|| {
+        (magstand_core::held_out::duration_with_data_s(t_s) / 150.0).clamp(0.5, 10.0)
+    });
+    Split::new(t_s, block_s, holdout_every)
+}
+
 /// Checks that the recording fits the nominal stand and is long enough to hold out, and
 /// returns the nominal physics for it, its split and its nominal replay.
 fn prepare(
@@ -129,7 +138,7 @@ fn prepare(
             rec.len()
         )));
     }
-    let split = Split::new(&rec.t_s, cfg.block_s, cfg.holdout_every);
+    let split = held_out_split(&rec.t_s, cfg.block_s, cfg.holdout_every);
     if split.holdout_blocks() < MIN_HOLDOUT_BLOCKS || split.fit_rows() < 50 {
         return Err(bad(format!(
             "{} rows in {} held-out blocks of {:.2} s: expected at least 50 rows to fit and {} \

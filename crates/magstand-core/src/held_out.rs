@@ -1,9 +1,15 @@
-//! Held-out data: the recording cut into time blocks, every few blocks held out.
+//! Held-out data, the one split every fit and test of magstand uses: the recording cut into
+//! time blocks, every few blocks held out, a gap in the data (between two flights) a block
+//! boundary rather than time.
 //!
-//! Blocks are short against the recording (1/150 of it) so that both parts cover every
-//! throttle level and the whole duration: slow effects (heating, battery) and fast ones
-//! (steps) are judged on data the fit never saw. Held-out blocks also serve as roughly
-//! independent units for the tests, since residual structure rarely lasts longer than a block.
+//! Its users choose the block length and the share:
+//! - the identification (`magstand-ident`) holds out every 5th block of 1/50 of the span (at
+//!   most 1 s): few, long blocks, since its fits need every throttle level in both parts;
+//! - the diagnosis (`magstand-diagnose`) holds out every 3rd block of 1/150 of the duration
+//!   (0.5 to 10 s): blocks short against the recording, so that slow effects (heating,
+//!   battery) and fast ones (steps) are judged on data the fit never saw, and held-out blocks
+//!   serve as roughly independent units for its tests, since residual structure rarely lasts
+//!   longer than a block.
 
 /// Which rows are held out, and the block of every row.
 #[derive(Debug, Clone, PartialEq)]
@@ -16,26 +22,34 @@ pub struct Split {
     pub block_s: f64,
 }
 
+/// Each row's time with the data's gaps closed to nothing, from the first row, s.
+fn time_with_data_s(t_s: &[f64]) -> Vec<f64> {
+    let starts = crate::rows_after_gaps(t_s);
+    let mut active = Vec::with_capacity(t_s.len());
+    let mut closed = 0.0;
+    for (r, &t) in t_s.iter().enumerate() {
+        if r > 0 && starts.binary_search(&r).is_ok() {
+            closed += t - t_s[r - 1];
+        }
+        active.push(t - t_s[0] - closed);
+    }
+    active
+}
+
+/// The time the recording holds data, s: its span with every gap closed to nothing.
+pub fn duration_with_data_s(t_s: &[f64]) -> f64 {
+    time_with_data_s(t_s).last().copied().unwrap_or(0.0)
+}
+
 impl Split {
-    /// Blocks of `block_s` (or 1/150 of the duration, kept in 0.5..10 s); every
-    /// `holdout_every`-th block, starting with the last of the first group, is held out.
+    /// Blocks of `block_s` (positive) of time with data; every `holdout_every`-th block,
+    /// starting with the last of the first group, is held out.
     ///
     /// A gap in the data (a log holding two flights) is a boundary, not a long stretch of
-    /// time: the duration counts only the time with data, and a new block starts after each
-    /// gap, so no block spans one.
-    pub fn new(t_s: &[f64], block_s: Option<f64>, holdout_every: usize) -> Split {
-        let starts = magstand_core::rows_after_gaps(t_s);
-        // Time with data: every gap closed to nothing.
-        let mut active = Vec::with_capacity(t_s.len());
-        let mut closed = 0.0;
-        for (r, &t) in t_s.iter().enumerate() {
-            if r > 0 && starts.binary_search(&r).is_ok() {
-                closed += t - t_s[r - 1];
-            }
-            active.push(t - t_s[0] - closed);
-        }
-        let duration = active.last().copied().unwrap_or(0.0);
-        let block_s = block_s.unwrap_or((duration / 150.0).clamp(0.5, 10.0));
+    /// time: a new block starts after each gap, so no block spans one.
+    pub fn new(t_s: &[f64], block_s: f64, holdout_every: usize) -> Split {
+        let starts = crate::rows_after_gaps(t_s);
+        let active = time_with_data_s(t_s);
         let mut block: Vec<usize> = Vec::with_capacity(t_s.len());
         let mut offset = 0;
         for (r, a) in active.iter().enumerate() {
@@ -45,10 +59,8 @@ impl Split {
             }
             block.push((a / block_s).floor() as usize + offset);
         }
-        let holdout = block
-            .iter()
-            .map(|b| b % holdout_every == holdout_every - 1)
-            .collect();
+        let every = holdout_every.max(1);
+        let holdout = block.iter().map(|b| b % every == every - 1).collect();
         Split {
             block,
             holdout,
@@ -82,13 +94,8 @@ mod tests {
     #[test]
     fn one_block_in_three_is_held_out() {
         let t: Vec<f64> = (0..3000).map(|k| k as f64 * 0.1).collect();
-        let auto = Split::new(&t, None, 3);
-        assert!(
-            (auto.block_s - 299.9 / 150.0).abs() < 1e-12,
-            "{}",
-            auto.block_s
-        );
-        let s = Split::new(&t, Some(2.0), 3);
+        assert!((duration_with_data_s(&t) - 299.9).abs() < 1e-12);
+        let s = Split::new(&t, 2.0, 3);
         assert_eq!(s.holdout_blocks(), 50);
         let held = s.holdout.iter().filter(|h| **h).count();
         assert!((990..=1010).contains(&held), "rows held out: {held}");
@@ -100,12 +107,12 @@ mod tests {
         // Two 100 s flights at 10 Hz, ten minutes apart.
         let mut t: Vec<f64> = (0..1000).map(|k| k as f64 * 0.1).collect();
         t.extend((0..1000).map(|k| 700.0 + k as f64 * 0.1));
-        let s = Split::new(&t, None, 3);
+        let duration = duration_with_data_s(&t);
         assert!(
-            (s.block_s - (199.9 - 0.1) / 150.0).abs() < 0.01,
-            "block {} s: the gap counted as time",
-            s.block_s
+            (duration - (199.9 - 0.1)).abs() < 0.15,
+            "{duration} s: the gap counted as time"
         );
+        let s = Split::new(&t, duration / 150.0, 3);
         assert!(
             s.block[1000] > s.block[999],
             "blocks {} and {} span the gap",
