@@ -6,6 +6,7 @@
 use magstand_core::{Quat, Recording};
 use magstand_diagnose::model_choice::{PHYSICS, choose_model, fit_physics, identification_split};
 use magstand_diagnose::unstated_nominal;
+use magstand_ident::family_choice::FamilyId;
 use magstand_ident::{Dataset, FitConfig, InputKind};
 use magstand_tests::independent::{Case, recording, rmse_ut};
 
@@ -72,7 +73,7 @@ fn with_current_logged_the_choice_meets_the_goal_on_an_independent_stand() {
         .families
         .iter()
         .filter(|f| f.holdout_rmse_ut.is_some())
-        .map(|f| f.family.as_str())
+        .map(|f| f.family.id())
         .collect();
     // bat_a is logged and the commands differ (attitude-like differentials).
     assert_eq!(
@@ -108,7 +109,7 @@ fn without_current_the_choice_follows_the_truth_ranking() {
     let current = choice
         .families
         .iter()
-        .find(|f| f.family == "automatic-current")
+        .find(|f| f.family == FamilyId::Current)
         .unwrap();
     assert!(
         current.holdout_rmse_ut.is_none()
@@ -137,7 +138,7 @@ fn a_flight_never_gets_the_physics_family() {
     let physics = choice
         .families
         .iter()
-        .find(|f| f.family == PHYSICS)
+        .find(|f| f.family == FamilyId::Physics)
         .unwrap();
     assert!(
         physics.holdout_rmse_ut.is_none()

@@ -24,7 +24,7 @@
 //! | `automatic-motors` (the same on each motor's command) | the motor commands differ |
 //! | `physics` | a stand recording (not a flight) of at most [`PHYSICS_MAX_ROWS`] rows |
 use magstand_core::{Recording, Vec3};
-use magstand_ident::family_choice::{Contender, FamilyChoice, choose};
+use magstand_ident::family_choice::{Contender, FamilyChoice, FamilyId, choose};
 use magstand_ident::{Dataset, FitConfig, InputKind, Model, ValidFitConfig};
 use magstand_sim::ValidScenario;
 
@@ -33,7 +33,7 @@ use crate::diagnosis::Diagnosis;
 use crate::{DiagnoseConfig, DiagnoseError};
 
 /// Family id of the physics model.
-pub const PHYSICS: &str = "physics";
+pub const PHYSICS: &str = magstand_ident::methods::PHYSICS_ID;
 
 /// Most rows the automatic choice fits the physics family on: each of its parameter searches
 /// replays the whole recording, about a second per 25,000 rows. A longer recording is fitted
@@ -193,17 +193,17 @@ pub fn choose_model(
             .collect::<Vec<Vec3>>())
     });
     let contender =
-        |family: &str, fit: Result<&(Model, Vec<Vec3>, Vec<bool>), &String>| Contender {
-            family: family.into(),
+        |family: FamilyId, fit: Result<&(Model, Vec<Vec3>, Vec<bool>), &String>| Contender {
+            family,
             parameters: fit.map_or(0, |f| f.0.parameter_count()),
             residuals_ut: fit.map(|f| f.1.clone()).map_err(Clone::clone),
         };
     let contenders = vec![
-        contender(magstand_ident::methods::DEFAULT_ID, Ok(&throttle)),
-        contender("automatic-current", current.as_ref()),
-        contender("automatic-motors", motors.as_ref()),
+        contender(FamilyId::Throttle, Ok(&throttle)),
+        contender(FamilyId::Current, current.as_ref()),
+        contender(FamilyId::Motors, motors.as_ref()),
         Contender {
-            family: PHYSICS.into(),
+            family: FamilyId::Physics,
             parameters: physics.as_ref().map_or(0, |p| p.model.parameter_count()),
             residuals_ut: physics_residuals,
         },
@@ -216,8 +216,8 @@ pub fn choose_model(
         m.choice = Some(choice.clone());
         DisturbanceModel::LocalLinear(Box::new(m))
     };
-    let chosen = match choice.chosen.as_str() {
-        PHYSICS => {
+    let chosen = match choice.chosen {
+        FamilyId::Physics => {
             let mut m = physics
                 .map_err(|message| DiagnoseError::Recording {
                     origin: origin.into(),
@@ -227,8 +227,8 @@ pub fn choose_model(
             m.choice = Some(choice.clone());
             DisturbanceModel::Physics(Box::new(m))
         }
-        "automatic-current" => with_choice(current.map_err(unreachable_err(origin))?.0),
-        "automatic-motors" => with_choice(motors.map_err(unreachable_err(origin))?.0),
+        FamilyId::Current => with_choice(current.map_err(unreachable_err(origin))?.0),
+        FamilyId::Motors => with_choice(motors.map_err(unreachable_err(origin))?.0),
         _ => with_choice(throttle.0),
     };
     Ok((chosen, choice))
@@ -287,7 +287,7 @@ impl DisturbanceModel {
             DisturbanceModel::LocalLinear(m) => m
                 .choice
                 .as_ref()
-                .map_or(m.method.as_str(), |c| c.chosen.as_str()),
+                .map_or(m.method.as_str(), |c| c.chosen.id()),
             DisturbanceModel::Physics(_) => PHYSICS,
         }
     }

@@ -22,11 +22,76 @@ use serde::{Deserialize, Serialize};
 
 use magstand_core::Vec3;
 
+/// The model families the choice tries, each with one spelling in every file.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(try_from = "String", into = "String")]
+#[non_exhaustive]
+pub enum FamilyId {
+    /// Local linear on the overall throttle, automatic structure (`automatic`).
+    Throttle,
+    /// Local linear on the supply current (`automatic-current`).
+    Current,
+    /// Local linear on each motor's command (`automatic-motors`).
+    Motors,
+    /// The stand's physics, calibrated (`physics`).
+    Physics,
+}
+
+impl FamilyId {
+    /// Every family, in the order the choice tries them.
+    pub const ALL: [FamilyId; 4] = [
+        FamilyId::Throttle,
+        FamilyId::Current,
+        FamilyId::Motors,
+        FamilyId::Physics,
+    ];
+
+    /// Its spelling in model files, tables and flags.
+    pub fn id(self) -> &'static str {
+        match self {
+            FamilyId::Throttle => crate::methods::DEFAULT_ID,
+            FamilyId::Current => "automatic-current",
+            FamilyId::Motors => "automatic-motors",
+            FamilyId::Physics => crate::methods::PHYSICS_ID,
+        }
+    }
+
+    /// The family spelled `id`.
+    pub fn from_id(id: &str) -> Option<FamilyId> {
+        FamilyId::ALL.into_iter().find(|f| f.id() == id)
+    }
+}
+
+impl std::fmt::Display for FamilyId {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.id())
+    }
+}
+
+impl From<FamilyId> for String {
+    fn from(f: FamilyId) -> String {
+        f.id().to_string()
+    }
+}
+
+impl TryFrom<String> for FamilyId {
+    type Error = String;
+    fn try_from(id: String) -> Result<Self, String> {
+        FamilyId::from_id(&id).ok_or_else(|| {
+            let known: Vec<_> = FamilyId::ALL.iter().map(|f| f.id()).collect();
+            format!(
+                "unknown model family `{id}`: expected one of {}",
+                known.join(", ")
+            )
+        })
+    }
+}
+
 /// What one family gave on the held-out blocks.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct FamilyScore {
-    /// Family id (`automatic`, `automatic-current`, `automatic-motors`, `physics`).
-    pub family: String,
+    /// The family.
+    pub family: FamilyId,
     /// The numbers the family's fit chose (see `Model::parameter_count`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub parameters: Option<usize>,
@@ -49,7 +114,7 @@ pub struct FamilyScore {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct FamilyChoice {
     /// The family kept.
-    pub chosen: String,
+    pub chosen: FamilyId,
     /// Why, in one sentence.
     pub reason: String,
     /// The rule, in one sentence.
@@ -69,8 +134,8 @@ pub const RULE: &str = "lowest held-out error; a family with fewer parameters is
 /// used), or why it has none.
 #[derive(Debug, Clone)]
 pub struct Contender {
-    /// Family id.
-    pub family: String,
+    /// The family.
+    pub family: FamilyId,
     /// Parameter count.
     pub parameters: usize,
     /// Residual at every row of the recording, µT, from a fit that did not see the held-out
@@ -165,7 +230,7 @@ pub fn choose(contenders: &[Contender], holdout: &[bool], block: &[u64]) -> Opti
                     within.push(i);
                 }
                 FamilyScore {
-                    family: c.family.clone(),
+                    family: c.family,
                     parameters: Some(c.parameters),
                     holdout_rmse_ut: Some(s.rmse),
                     excess_ut2: Some(excess),
@@ -174,7 +239,7 @@ pub fn choose(contenders: &[Contender], holdout: &[bool], block: &[u64]) -> Opti
                 }
             }
             (None, Err(why)) => FamilyScore {
-                family: c.family.clone(),
+                family: c.family,
                 parameters: None,
                 holdout_rmse_ut: None,
                 excess_ut2: None,
@@ -182,7 +247,7 @@ pub fn choose(contenders: &[Contender], holdout: &[bool], block: &[u64]) -> Opti
                 note: Some(why.clone()),
             },
             (None, Ok(_)) => FamilyScore {
-                family: c.family.clone(),
+                family: c.family,
                 parameters: Some(c.parameters),
                 holdout_rmse_ut: None,
                 excess_ut2: None,
@@ -227,7 +292,7 @@ pub fn choose(contenders: &[Contender], holdout: &[bool], block: &[u64]) -> Opti
         )
     };
     Some(FamilyChoice {
-        chosen: contenders[chosen].family.clone(),
+        chosen: contenders[chosen].family,
         reason,
         rule: RULE.into(),
         holdout_rows: held_rows,
@@ -240,7 +305,7 @@ pub fn choose(contenders: &[Contender], holdout: &[bool], block: &[u64]) -> Opti
 mod tests {
     use super::*;
 
-    fn contender(family: &str, parameters: usize, sd: f64, seed: u64) -> Contender {
+    fn contender(family: FamilyId, parameters: usize, sd: f64, seed: u64) -> Contender {
         // Deterministic pseudo-noise of the given size.
         let mut x = seed;
         let mut next = || {
@@ -250,7 +315,7 @@ mod tests {
             ((x >> 11) as f64 / (1u64 << 53) as f64 - 0.5) * 2.0 * 3f64.sqrt() * sd
         };
         Contender {
-            family: family.into(),
+            family,
             parameters,
             residuals_ut: Ok((0..2000)
                 .map(|_| Vec3::new(next(), next(), next()))
@@ -267,11 +332,11 @@ mod tests {
     fn a_clearly_better_family_wins_despite_more_parameters() {
         let (h, b) = split();
         let c = [
-            contender("small", 10, 0.5, 1),
-            contender("large", 40, 0.1, 2),
+            contender(FamilyId::Throttle, 10, 0.5, 1),
+            contender(FamilyId::Motors, 40, 0.1, 2),
         ];
         let choice = choose(&c, &h, &b).unwrap();
-        assert_eq!(choice.chosen, "large", "{choice:?}");
+        assert_eq!(choice.chosen, FamilyId::Motors, "{choice:?}");
         assert_eq!(choice.holdout_blocks, 10);
         let rmse = choice.families[1].holdout_rmse_ut.unwrap();
         assert!((rmse[0] - 0.1).abs() < 0.02, "{rmse:?}");
@@ -281,15 +346,15 @@ mod tests {
     fn within_noise_the_smaller_family_wins() {
         let (h, b) = split();
         // The same residuals but for a hair: not told apart by the data.
-        let large = contender("large", 40, 0.3, 7);
+        let large = contender(FamilyId::Motors, 40, 0.3, 7);
         let mut small = large.clone();
-        small.family = "small".into();
+        small.family = FamilyId::Throttle;
         small.parameters = 10;
         if let Ok(r) = &mut small.residuals_ut {
             r[4 * 40] *= 1.01;
         }
         let choice = choose(&[large, small], &h, &b).unwrap();
-        assert_eq!(choice.chosen, "small", "{choice:?}");
+        assert_eq!(choice.chosen, FamilyId::Throttle, "{choice:?}");
         assert!(
             choice.reason.contains("fewer parameters"),
             "{}",
@@ -302,16 +367,30 @@ mod tests {
         let (h, b) = split();
         let c = [
             Contender {
-                family: "automatic-current".into(),
+                family: FamilyId::Current,
                 parameters: 0,
                 residuals_ut: Err("no bat_a column".into()),
             },
-            contender("automatic", 30, 0.2, 3),
+            contender(FamilyId::Throttle, 30, 0.2, 3),
         ];
         let choice = choose(&c, &h, &b).unwrap();
-        assert_eq!(choice.chosen, "automatic");
+        assert_eq!(choice.chosen, FamilyId::Throttle);
         assert_eq!(choice.families[0].note.as_deref(), Some("no bat_a column"));
         let none = choose(&c[..1], &h, &b);
         assert!(none.is_none(), "{none:?}");
+    }
+
+    #[test]
+    fn each_family_has_one_spelling_that_reads_back() {
+        for f in FamilyId::ALL {
+            let text = serde_json::to_string(&f).unwrap();
+            assert_eq!(text, format!("\"{}\"", f.id()));
+            assert_eq!(serde_json::from_str::<FamilyId>(&text).unwrap(), f);
+        }
+        let e = serde_json::from_str::<FamilyId>("\"cubic\"").unwrap_err();
+        assert!(
+            e.to_string().contains("unknown model family `cubic`"),
+            "{e}"
+        );
     }
 }

@@ -332,7 +332,7 @@ fn push_choice(s: &mut Section, c: &magstand_ident::family_choice::FamilyChoice)
                     if f.family == c.chosen {
                         format!("{} (kept)", f.family)
                     } else {
-                        f.family.clone()
+                        f.family.to_string()
                     },
                     p.to_string(),
                     format!("{} / {} / {}", f3(r[0]), f3(r[1]), f3(r[2])),
@@ -343,7 +343,7 @@ fn push_choice(s: &mut Section, c: &magstand_ident::family_choice::FamilyChoice)
                     ),
                 ],
                 _ => vec![
-                    f.family.clone(),
+                    f.family.to_string(),
                     "-".into(),
                     f.note.clone().unwrap_or_else(|| "not scored".into()),
                     "-".into(),
