@@ -48,12 +48,12 @@ fn print_truth(rmse_ut: Option<[f64; 3]>) {
 }
 
 /// Compensates with an augmented model from `magstand diagnose`.
-fn run_augmented(a: &CompensateArgs, model: &magstand_diagnose::AugmentedModel) -> Result<()> {
-    let rec = recording_csv::read(&a.recording)?;
-    let origin = a.recording.display().to_string();
-    let out = model.compensate(&rec, &origin)?;
-    files::ensure_parent(&a.out)?;
-    recording_csv::write(&out, &a.out)?;
+fn print_augmented(
+    a: &CompensateArgs,
+    model: &magstand_diagnose::AugmentedModel,
+    rec: &Recording,
+    dist: &[Vec3],
+) {
     let effects: Vec<&str> = model.effects.iter().map(|e| e.name.as_str()).collect();
     println!(
         "compensated {} rows with the augmented physics (nominal stand{}) -> {}",
@@ -65,8 +65,7 @@ fn run_augmented(a: &CompensateArgs, model: &magstand_diagnose::AugmentedModel) 
         },
         a.out.display()
     );
-    print_truth(against_truth(&rec, &removed(&rec, &out)).map(|(e, _)| e));
-    Ok(())
+    print_truth(against_truth(rec, dist).map(|(e, _)| e));
 }
 
 /// Compensates with the recursive estimation (`--adapt`).
@@ -143,29 +142,31 @@ fn warn_beyond_identified(model: &Model, rec: &Recording, origin: &str) {
 pub fn run(a: CompensateArgs) -> Result<()> {
     files::refuse_overwriting_inputs(&[&a.model, &a.recording], &[&a.out])?;
     // The library reads either format by the one the file declares.
-    let model = match DisturbanceModel::load(&a.model)? {
-        DisturbanceModel::Physics(m) => {
-            if a.adapt {
-                anyhow::bail!(
-                    "{}: --adapt updates a local linear model's coefficients; this is a physics (augmented) model",
-                    a.model.display()
-                );
-            }
-            return run_augmented(&a, &m);
-        }
-        DisturbanceModel::LocalLinear(m) => *m,
-    };
+    let model = DisturbanceModel::load(&a.model)?;
     let origin = a.recording.display().to_string();
     if a.adapt {
-        return run_adaptive(&a, &model, &origin);
+        let DisturbanceModel::LocalLinear(m) = &model else {
+            anyhow::bail!(
+                "{}: --adapt updates a local linear model's coefficients; this is a physics (augmented) model",
+                a.model.display()
+            );
+        };
+        return run_adaptive(&a, m, &origin);
     }
     let rec = recording_csv::read(&a.recording)?;
     let out = model.compensate(&rec, &origin)?;
     files::ensure_parent(&a.out)?;
     recording_csv::write(&out, &a.out)?;
-    warn_beyond_identified(&model, &rec, &origin);
     // The prediction is what the compensation removed: evaluated once, not again.
     let dist = removed(&rec, &out);
+    let model = match &model {
+        DisturbanceModel::Physics(m) => {
+            print_augmented(&a, m, &rec, &dist);
+            return Ok(());
+        }
+        DisturbanceModel::LocalLinear(m) => m,
+    };
+    warn_beyond_identified(model, &rec, &origin);
     if flight::is_flight(&rec) {
         // A turning vehicle: the stand's figures (heading at fixed attitude, interference
         // over levels) mean nothing; judge the field's magnitude and the heading instead.
@@ -186,7 +187,7 @@ pub fn run(a: CompensateArgs) -> Result<()> {
         print_truth(against_truth(&rec, &dist).map(|(e, _)| e));
         return Ok(());
     }
-    let ev = Evaluation::from_prediction(&model, &rec, &dist);
+    let ev = Evaluation::from_prediction(model, &rec, &dist);
     println!(
         "compensated {} rows -> {}; heading error (worst level) {:.2} deg -> {:.2} deg; interference {:.1} % -> {:.1} %",
         rec.len(),
