@@ -1,12 +1,14 @@
-//! The library pipeline of `magstand demo`, without the printing: simulate an identification
-//! stair and a validation stair of the paper-like stand, fit the paper's model and the
-//! automatic one, compensate the validation run and compare each with the simulator's truth.
+//! The library pipeline of `magstand demo`, without the printing and the files: simulate an
+//! identification stair and a validation stair of the paper-like stand, fit the named methods
+//! and the automatic choice among model families on the first, judge each on the second
+//! against the simulator's truth, and compensate the validation run with the chosen model.
+//! `magstand demo` calls the same [`identify_and_compensate`].
 //!
 //! `cargo run --release -p magstand-cli --example identify_and_compensate`
 use anyhow::{Context, Result};
 use magstand_core::Vec3;
-use magstand_ident::{FitConfig, metrics::Evaluation};
 use magstand_sim::{Scenario, simulate};
+use magstand_study::comparison::identify_and_compensate;
 
 fn run() -> Result<()> {
     // A shorter stair than the shipped one, so the example runs in seconds.
@@ -18,21 +20,31 @@ fn run() -> Result<()> {
     let ident = simulate(&ident_s, 1);
     let valid = simulate(&valid_s, 2);
 
-    for (name, config) in [
-        ("paper: 3 RBF, local", FitConfig::paper()),
-        ("automatic structure", FitConfig::automatic()),
-    ] {
-        let model = config.check()?.fit_recording(&ident, "identification")?;
-        let compensated = model.compensate(&valid, "validation")?;
-        let truth = Evaluation::new(&model, &valid)
+    // The paper's model and magstand's automatic structure, then the automatic choice.
+    let methods: Vec<_> = magstand_ident::methods::catalog()
+        .into_iter()
+        .filter(|m| ["paper-local", "automatic"].contains(&m.id))
+        .collect();
+    let comparison =
+        identify_and_compensate(&methods, &ident, "identification", &valid, "validation")?;
+    for j in &comparison.judged {
+        let truth = j
+            .evaluation
             .truth_rmse_ut
             .context("a simulated recording carries its truth")?;
         println!(
-            "{name:22} disturbance error against the truth {:.3} µT; {} rows compensated",
-            Vec3::from(truth).norm(),
-            compensated.len()
+            "{:40} disturbance error against the truth {:.3} µT",
+            j.label,
+            Vec3::from(truth).norm()
         );
     }
+    let compensated = comparison.chosen.compensate(&valid, "validation")?;
+    println!(
+        "{} rows compensated with the chosen family, {}: {}",
+        compensated.len(),
+        comparison.chosen.family(),
+        comparison.choice.reason
+    );
     Ok(())
 }
 

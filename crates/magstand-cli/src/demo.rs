@@ -54,36 +54,24 @@ pub fn run(a: DemoArgs) -> Result<()> {
         valid.len()
     );
 
-    let mut table = Vec::new();
-    let truth_rmse = |ev: &Evaluation| ev.truth_rmse_ut.map_or(f64::NAN, |e| Vec3::from(e).norm());
-    for method in magstand_ident::methods::catalog() {
-        let model = method
-            .config
-            .check()?
-            .fit_recording(&ident, &ident_path.display().to_string())?;
-        let ev = Evaluation::new(&model, &valid);
-        table.push((method.label.to_string(), truth_rmse(&ev), ev));
-    }
-    // What `magstand fit` does with no options: every family judged on held-out blocks.
-    let (model, choice) = magstand_diagnose::model_choice::choose_model(
+    // The library pipeline (the `identify_and_compensate` example runs the same).
+    let valid_name = valid_path.display().to_string();
+    let comparison = magstand_study::comparison::identify_and_compensate(
+        &magstand_ident::methods::catalog(),
         &ident,
         &ident_path.display().to_string(),
-        &magstand_diagnose::unstated_nominal()?,
-        None,
-    )?;
-    let valid_name = valid_path.display().to_string();
-    let ev = Evaluation::from_prediction_at(
-        model.reference_ut(),
         &valid,
-        &model.dist_column(&valid, &valid_name)?,
-    );
-    table.push((
-        format!("magstand fit default ({} chosen)", model.family()),
-        truth_rmse(&ev),
-        ev,
-    ));
-    crate::fit_cmd::print_choice(&choice);
-    if let magstand_diagnose::model_choice::DisturbanceModel::LocalLinear(m) = &model {
+        &valid_name,
+    )?;
+    let truth_rmse = |ev: &Evaluation| ev.truth_rmse_ut.map_or(f64::NAN, |e| Vec3::from(e).norm());
+    let table: Vec<_> = comparison
+        .judged
+        .iter()
+        .map(|j| (j.label.clone(), truth_rmse(&j.evaluation), &j.evaluation))
+        .collect();
+    let model = &comparison.chosen;
+    crate::fit_cmd::print_choice(&comparison.choice);
+    if let magstand_diagnose::model_choice::DisturbanceModel::LocalLinear(m) = model {
         print_summary(m);
     }
     let model_path = a.out.join("model.json");
@@ -154,7 +142,7 @@ pub fn run(a: DemoArgs) -> Result<()> {
         &[],
         &valid,
         &valid_path.display().to_string(),
-        Some(&model),
+        Some(model),
         Some(&diagnosis),
         None,
         prov,

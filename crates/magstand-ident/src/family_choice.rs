@@ -64,7 +64,7 @@ impl FamilyId {
 
 impl std::fmt::Display for FamilyId {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(self.id())
+        f.pad(self.id())
     }
 }
 

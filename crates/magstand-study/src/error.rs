@@ -78,4 +78,10 @@ pub enum StudyError {
     /// The worker threads could not be started.
     #[error("thread pool: {0}")]
     Threads(String),
+    /// A method's fit could not be made.
+    #[error(transparent)]
+    Fit(#[from] magstand_ident::IdentError),
+    /// The choice among model families could not be made.
+    #[error(transparent)]
+    Choice(#[from] magstand_diagnose::DiagnoseError),
 }

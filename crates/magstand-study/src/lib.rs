@@ -45,6 +45,7 @@
 //! ```
 #![warn(missing_docs)]
 
+pub mod comparison;
 mod config;
 pub mod crlb;
 mod error;
