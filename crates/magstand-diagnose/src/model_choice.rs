@@ -131,7 +131,7 @@ pub fn choose_model(
         }
         if rec.len() > PHYSICS_MAX_ROWS {
             return Err(format!(
-                "not tried: {} rows, above the {PHYSICS_MAX_ROWS} the choice fits it on (`--method physics` fits it anyway)",
+                "not tried: {} rows, above the {PHYSICS_MAX_ROWS} the choice fits it on (the physics method asked for alone fits it anyway)",
                 rec.len()
             ));
         }
