@@ -328,6 +328,7 @@ impl AugmentedModel {
             command_lead: self.command_lead,
             flight: false,
             follow_recorded_voltage: self.follow_recorded_voltage,
+            replays: Default::default(),
         };
         // Each effect's parameters as its own search defines them: as many as it searches,
         // finite, positive where it searches on a log scale, and within ten times its range.

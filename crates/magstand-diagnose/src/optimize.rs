@@ -2,6 +2,7 @@
 //! a grid over the allowed range, then golden-section refinement of each coordinate around
 //! the best grid point. The objective is a weighted chi-square, so the uncertainty of a
 //! parameter follows from the curvature: `sd = sqrt(2 / f'')`, conditional on the others.
+use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 /// One nonlinear parameter and where to look for it.
@@ -61,7 +62,10 @@ pub(crate) struct Optimum {
 const GOLDEN_ITERATIONS: usize = 16;
 
 /// Minimizes `f` (None where the fit fails) over the searches.
-pub(crate) fn minimize(searches: &[Search], f: impl Fn(&[f64]) -> Option<f64>) -> Option<Optimum> {
+pub(crate) fn minimize(
+    searches: &[Search],
+    f: impl Fn(&[f64]) -> Option<f64> + Sync,
+) -> Option<Optimum> {
     let eval = |u: &[f64]| -> f64 {
         let theta: Vec<f64> = searches
             .iter()
@@ -78,21 +82,20 @@ pub(crate) fn minimize(searches: &[Search], f: impl Fn(&[f64]) -> Option<f64>) -
             sd: vec![],
         });
     }
-    // Grid (full factorial: at most two parameters per candidate).
-    let mut best_u = vec![0.0; searches.len()];
-    let mut best = f64::INFINITY;
+    // Grid (full factorial: at most two parameters per candidate), its points evaluated in
+    // parallel: the candidates of a round are searched in parallel too, but their searches
+    // differ tenfold in size, and the refinement after an acceptance searches alone. The
+    // first best point in grid order wins, as a sequential scan would have it.
+    let mut grid: Vec<Vec<f64>> = Vec::new();
     let mut idx = vec![0usize; searches.len()];
     loop {
-        let u: Vec<f64> = searches
-            .iter()
-            .zip(&idx)
-            .map(|(s, &i)| s.u_range().0 + i as f64 * s.step())
-            .collect();
-        let v = eval(&u);
-        if v < best {
-            best = v;
-            best_u = u;
-        }
+        grid.push(
+            searches
+                .iter()
+                .zip(&idx)
+                .map(|(s, &i)| s.u_range().0 + i as f64 * s.step())
+                .collect(),
+        );
         let mut k = 0;
         loop {
             if k == idx.len() {
@@ -107,6 +110,15 @@ pub(crate) fn minimize(searches: &[Search], f: impl Fn(&[f64]) -> Option<f64>) -
         }
         if k == idx.len() {
             break;
+        }
+    }
+    let values: Vec<f64> = grid.par_iter().map(|u| eval(u)).collect();
+    let mut best_u = vec![0.0; searches.len()];
+    let mut best = f64::INFINITY;
+    for (u, v) in grid.into_iter().zip(values) {
+        if v < best {
+            best = v;
+            best_u = u;
         }
     }
     if !best.is_finite() {
@@ -134,7 +146,8 @@ pub(crate) fn minimize(searches: &[Search], f: impl Fn(&[f64]) -> Option<f64>) -
             }
         }
     }
-    // Curvature in the search coordinate, converted to the parameter's units.
+    // Curvature in the search coordinate, converted to the parameter's units (the two
+    // neighbours of each parameter evaluated in parallel).
     let sd = searches
         .iter()
         .enumerate()
@@ -144,7 +157,8 @@ pub(crate) fn minimize(searches: &[Search], f: impl Fn(&[f64]) -> Option<f64>) -
             up[k] += h;
             let mut down = best_u.clone();
             down[k] -= h;
-            let curv = (eval(&up) - 2.0 * best + eval(&down)) / (h * h);
+            let (f_up, f_down) = rayon::join(|| eval(&up), || eval(&down));
+            let curv = (f_up - 2.0 * best + f_down) / (h * h);
             let sd_u = (2.0 / curv).sqrt();
             let dtheta_du = if s.log { s.value_at(best_u[k]) } else { 1.0 };
             (curv.is_finite() && curv > 0.0).then_some(sd_u * dtheta_du)

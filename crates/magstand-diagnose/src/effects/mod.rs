@@ -77,6 +77,8 @@ pub struct Context<'a> {
     /// start, as the physics model does; the diagnosis instead names the battery's sag as an
     /// effect when the data demand it.
     pub follow_recorded_voltage: bool,
+    /// Replays already made of this recording, reused by the searches.
+    pub(crate) replays: crate::pipeline::design::ReplayCache,
 }
 
 /// A fitted parameter with its unit and standard uncertainty.
@@ -280,6 +282,7 @@ mod tests {
             command_lead: 0.5,
             flight: false,
             follow_recorded_voltage: false,
+            replays: Default::default(),
         };
         for e in catalog() {
             let searched: Vec<_> = e.search(&ctx).iter().map(|s| s.name).collect();

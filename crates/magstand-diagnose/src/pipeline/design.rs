@@ -1,8 +1,11 @@
 //! Stage 1, the regression design: the recording's commands replayed through the nominal
 //! physics with the terms' nonlinear parameters, the regressor columns of the baseline and of
 //! every term, and the weighted fit of such a design with a noise law from its own residuals.
+use std::sync::{Arc, Mutex};
+
 use magstand_core::Vec3;
-use magstand_sim::replay::replay;
+use magstand_sim::Scenario;
+use magstand_sim::replay::{Trace, replay};
 
 use crate::DiagnoseError;
 use crate::effects::{Context, Effect};
@@ -35,6 +38,60 @@ impl Built {
     }
 }
 
+/// Replays of the recording already made, by the physics and the timing they were made with
+/// (the magnetometer's delay left out): the searches evaluate the same physics many times (an
+/// effect whose parameters the replay does not see, a delay searched over one replay, the
+/// accepted terms' physics in every round). A few of the latest are kept, so memory stays at a
+/// few replays of the recording.
+#[derive(Default)]
+pub(crate) struct ReplayCache(Mutex<Vec<(ReplayKey, Arc<Trace>)>>);
+
+/// What a replay depends on.
+#[derive(PartialEq)]
+struct ReplayKey {
+    scenario: Scenario,
+    lead_bits: u64,
+    recorded_voltage: bool,
+}
+
+/// Replays a cache keeps.
+const REPLAYS_KEPT: usize = 6;
+
+impl ReplayCache {
+    /// The replay of `scenario` at `lead`, made by `make` unless one is kept; the latest used
+    /// are kept.
+    fn get_or_make(
+        &self,
+        scenario: &Scenario,
+        lead: f64,
+        recorded_voltage: bool,
+        make: impl FnOnce() -> Trace,
+    ) -> Arc<Trace> {
+        let key = ReplayKey {
+            scenario: scenario.clone(),
+            lead_bits: lead.to_bits(),
+            recorded_voltage,
+        };
+        // A poisoned lock only means another search panicked; the list itself stays valid.
+        let lock = || self.0.lock().unwrap_or_else(|e| e.into_inner());
+        {
+            let mut kept = lock();
+            if let Some(i) = kept.iter().position(|(k, _)| *k == key) {
+                let hit = kept.remove(i);
+                let trace = Arc::clone(&hit.1);
+                kept.insert(0, hit);
+                return trace;
+            }
+        }
+        // Made outside the lock: the candidates' searches run in parallel.
+        let trace = Arc::new(make());
+        let mut kept = lock();
+        kept.insert(0, (key, Arc::clone(&trace)));
+        kept.truncate(REPLAYS_KEPT);
+        trace
+    }
+}
+
 /// The design of `terms` with the context's command lead.
 pub(crate) fn build(ctx: &Context, terms: &[(&dyn Effect, &[f64])]) -> Built {
     build_with_lead(ctx, terms, ctx.command_lead)
@@ -53,7 +110,21 @@ pub(crate) fn build_with_lead(ctx: &Context, terms: &[(&dyn Effect, &[f64])], le
     } else {
         None
     };
-    let trace = replay(&s, &ctx.rec.t_s, &ctx.rec.thr, bat_v, lead);
+    // The magnetometer's delay shifts a replay without changing it: replays are kept without
+    // it and shifted here, so a search over the delay replays once.
+    let delay_s = std::mem::take(&mut s.logging.mag_delay_s);
+    let undelayed = ctx.replays.get_or_make(&s, lead, bat_v.is_some(), || {
+        replay(&s, &ctx.rec.t_s, &ctx.rec.thr, bat_v, lead)
+    });
+    let delayed;
+    let trace: &Trace = if delay_s > 0.0 {
+        let mut t = (*undelayed).clone();
+        t.delay(delay_s);
+        delayed = t;
+        &delayed
+    } else {
+        &undelayed
+    };
     let mut design = Design::baseline(&trace);
     let mut term_columns = Vec::new();
     for (e, theta) in terms {
@@ -72,7 +143,7 @@ pub(crate) fn build_with_lead(ctx: &Context, terms: &[(&dyn Effect, &[f64])], le
         .max(1e-9);
     Built {
         design,
-        fixed: trace.extra_ut,
+        fixed: trace.extra_ut.clone(),
         load: trace
             .total_a
             .iter()

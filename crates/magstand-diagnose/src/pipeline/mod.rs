@@ -82,6 +82,7 @@ pub(crate) fn diagnose_with(
         command_lead: 0.5,
         flight: flight.is_some(),
         follow_recorded_voltage: follow_recorded_voltage && rec.bat_v.is_some(),
+        replays: Default::default(),
     };
     let base = calibrate_baseline(&mut ctx, cfg)?;
     let rows = Rows::new(rec, &split.block);
