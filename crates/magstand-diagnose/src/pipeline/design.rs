@@ -125,11 +125,11 @@ pub(crate) fn build_with_lead(ctx: &Context, terms: &[(&dyn Effect, &[f64])], le
     } else {
         &undelayed
     };
-    let mut design = Design::baseline(&trace);
+    let mut design = Design::baseline(trace);
     let mut term_columns = Vec::new();
     for (e, theta) in terms {
         let start = design.len();
-        for (name, col) in e.regressors(ctx, &trace, theta) {
+        for (name, col) in e.regressors(ctx, trace, theta) {
             design.push(name, col);
         }
         term_columns.push(start..design.len());
