@@ -34,17 +34,29 @@ impl Design {
         let n = trace.len();
         let mut d = Design::default();
         d.push("reference", vec![1.0; n]);
-        let sum = |f: &dyn Fn(usize, usize) -> f64| -> Vec<f64> {
-            (0..n)
-                .map(|r| (0..trace.speed.len()).map(|m| f(m, r)).sum())
-                .collect()
-        };
-        d.push("driven", sum(&|m, r| trace.driven[m][r]));
-        for k in 1..=3 {
-            d.push(
-                format!("speed^{k}"),
-                sum(&|m, r| trace.driven[m][r] * trace.speed[m][r].powi(k)),
-            );
+        let motors = trace.speed.len();
+        // Each row's sums over the motors, all four columns in one pass; the powers by
+        // multiplication (the bits `powi` gives for 2 and 3).
+        let mut driven = Vec::with_capacity(n);
+        let mut powers: [Vec<f64>; 3] = std::array::from_fn(|_| Vec::with_capacity(n));
+        for r in 0..n {
+            let term = |m: usize, k: usize| {
+                let s = trace.speed[m][r];
+                let power = match k {
+                    1 => s,
+                    2 => s * s,
+                    _ => s * (s * s),
+                };
+                trace.driven[m][r] * power
+            };
+            driven.push((0..motors).map(|m| trace.driven[m][r]).sum());
+            for (k, column) in powers.iter_mut().enumerate() {
+                column.push((0..motors).map(|m| term(m, k + 1)).sum());
+            }
+        }
+        d.push("driven", driven);
+        for (k, column) in powers.into_iter().enumerate() {
+            d.push(format!("speed^{}", k + 1), column);
         }
         d
     }
