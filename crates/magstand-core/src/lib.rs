@@ -31,6 +31,7 @@ mod error;
 mod fast_csv;
 #[cfg(any(test, feature = "file-fuzzing"))]
 pub mod file_fuzzing;
+pub mod fixed_decimal;
 pub mod held_out;
 pub mod input_file;
 pub mod interpolation;

@@ -23,6 +23,8 @@ use std::collections::HashMap;
 use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
 
+use rayon::prelude::*;
+
 use crate::atomic_file;
 use crate::recording::{GroundTruth, ImuColumns, Recording};
 use crate::{AXES, CoreError, Quat, Vec3};
@@ -468,68 +470,139 @@ pub fn header(rec: &Recording) -> Vec<String> {
     h
 }
 
+/// Rows formatted by one worker at a time when writing.
+const WRITE_CHUNK_ROWS: usize = 4096;
+
 /// Writes a recording as CSV to any writer.
-pub fn write_to(rec: &Recording, out: impl Write, origin: &Path) -> Result<(), CoreError> {
+///
+/// The rows are formatted in chunks on every core, a few chunks per core at a time, and
+/// written in order: the text is the same as one row after the other, and memory stays at a
+/// few chunks whatever the recording's length.
+pub fn write_to(rec: &Recording, mut out: impl Write, origin: &Path) -> Result<(), CoreError> {
     rec.check()?;
-    let mut w = csv::WriterBuilder::new().from_writer(out);
-    // A failed write is the file system's (a full disk, a lost mount), never the CSV's: say so.
-    let io = |e: csv::Error| match e.into_kind() {
-        csv::ErrorKind::Io(e) => CoreError::io(origin, e),
-        other => CoreError::io(origin, std::io::Error::other(format!("{other:?}"))),
-    };
     let names = header(rec);
     // What is written must read back: every number finite and within its column's limit.
     let limits: Vec<f64> = names.iter().map(|n| magnitude_limit(n)).collect();
-    w.write_record(&names).map_err(io)?;
-    let mut values: Vec<(f64, usize)> = Vec::new();
-    let mut cells: Vec<String> = Vec::new();
     let exact_time = needs_exact_time(&rec.t_s);
-    for r in 0..rec.len() {
-        values.clear();
-        values.push((rec.t_s[r], if exact_time { EXACT } else { 6 }));
-        values.extend(rec.thr.iter().map(|m| (m[r], 6)));
-        push3(&mut values, &rec.mag_ut[r], 4);
-        for c in [&rec.bat_v, &rec.bat_a, &rec.temp_c].into_iter().flatten() {
-            values.push((c[r], 4));
+    let row_text = RowText {
+        rec,
+        names: &names,
+        limits: &limits,
+        exact_time,
+        origin,
+    };
+    let mut head = csv::WriterBuilder::new().from_writer(Vec::new());
+    head.write_record(&names).map_err(|e| csv_io(origin, e))?;
+    let head = head
+        .into_inner()
+        .map_err(|e| CoreError::io(origin, std::io::Error::other(e.to_string())))?;
+    out.write_all(&head).map_err(|e| CoreError::io(origin, e))?;
+    let batch_rows = WRITE_CHUNK_ROWS * 4 * rayon::current_num_threads().max(1);
+    let mut start = 0;
+    while start < rec.len() {
+        let end = (start + batch_rows).min(rec.len());
+        let chunks: Vec<std::ops::Range<usize>> = (start..end)
+            .step_by(WRITE_CHUNK_ROWS)
+            .map(|a| a..(a + WRITE_CHUNK_ROWS).min(end))
+            .collect();
+        let texts: Vec<Result<Vec<u8>, CoreError>> = chunks
+            .into_par_iter()
+            .map(|rows| row_text.format(rows))
+            .collect();
+        // The first bad cell in row order is the error, as a row-by-row writer would find it.
+        for text in texts {
+            out.write_all(&text?)
+                .map_err(|e| CoreError::io(origin, e))?;
         }
-        if let Some(i) = &rec.imu {
-            push3(&mut values, &i.acc_mps2[r], 5);
-            push3(&mut values, &i.gyr_rps[r], 6);
-        }
-        if let Some(q) = &rec.attitude {
-            let q = q[r].quaternion();
-            values.extend([q.w, q.i, q.j, q.k].map(|c| (c, 7)));
-        }
-        if let Some(g) = &rec.truth {
-            push3(&mut values, &g.field_ut[r], 4);
-            push3(&mut values, &g.dist_ut[r], 4);
-            push3(&mut values, &g.sd_ut[r], 4);
-        }
-        cells.clear();
-        for (k, &(v, decimals)) in values.iter().enumerate() {
-            if !crate::within(v, limits[k]) {
-                return Err(CoreError::BadCell {
-                    path: origin.to_path_buf(),
-                    row: r + 1,
-                    column: names[k].clone(),
-                    found: v.to_string(),
-                    expected: format!(
-                        "a finite number of magnitude at most {:e} (nothing was written)",
-                        limits[k]
-                    ),
-                });
-            }
-            // `+ 0.0` turns -0.0 into 0.0 so that signs of zero never differ between runs.
-            cells.push(match decimals {
-                EXACT => format!("{}", v + 0.0),
-                _ => format!("{:.*}", decimals, v + 0.0),
-            });
-        }
-        cells.extend(rec.extra.iter().map(|(_, c)| c[r].clone()));
-        w.write_record(&cells).map_err(io)?;
+        start = end;
     }
-    w.flush().map_err(|e| CoreError::io(origin, e))?;
+    out.flush().map_err(|e| CoreError::io(origin, e))?;
     Ok(())
+}
+
+/// A failed write is the file system's (a full disk, a lost mount), never the CSV's: say so.
+fn csv_io(origin: &Path, e: csv::Error) -> CoreError {
+    match e.into_kind() {
+        csv::ErrorKind::Io(e) => CoreError::io(origin, e),
+        other => CoreError::io(origin, std::io::Error::other(format!("{other:?}"))),
+    }
+}
+
+/// What formatting the rows of one recording needs.
+struct RowText<'a> {
+    rec: &'a Recording,
+    names: &'a [String],
+    limits: &'a [f64],
+    exact_time: bool,
+    origin: &'a Path,
+}
+
+impl RowText<'_> {
+    /// The CSV text of `rows`.
+    fn format(&self, rows: std::ops::Range<usize>) -> Result<Vec<u8>, CoreError> {
+        use std::fmt::Write as _;
+        let rec = self.rec;
+        let mut w = csv::WriterBuilder::new().from_writer(Vec::with_capacity(rows.len() * 96));
+        let mut values: Vec<(f64, usize)> = Vec::new();
+        // The row's numbers as one text, and where each ends: no allocation per cell.
+        let mut line = String::new();
+        let mut ends: Vec<usize> = Vec::new();
+        for r in rows {
+            values.clear();
+            values.push((rec.t_s[r], if self.exact_time { EXACT } else { 6 }));
+            values.extend(rec.thr.iter().map(|m| (m[r], 6)));
+            push3(&mut values, &rec.mag_ut[r], 4);
+            for c in [&rec.bat_v, &rec.bat_a, &rec.temp_c].into_iter().flatten() {
+                values.push((c[r], 4));
+            }
+            if let Some(i) = &rec.imu {
+                push3(&mut values, &i.acc_mps2[r], 5);
+                push3(&mut values, &i.gyr_rps[r], 6);
+            }
+            if let Some(q) = &rec.attitude {
+                let q = q[r].quaternion();
+                values.extend([q.w, q.i, q.j, q.k].map(|c| (c, 7)));
+            }
+            if let Some(g) = &rec.truth {
+                push3(&mut values, &g.field_ut[r], 4);
+                push3(&mut values, &g.dist_ut[r], 4);
+                push3(&mut values, &g.sd_ut[r], 4);
+            }
+            line.clear();
+            ends.clear();
+            for (k, &(v, decimals)) in values.iter().enumerate() {
+                if !crate::within(v, self.limits[k]) {
+                    return Err(CoreError::BadCell {
+                        path: self.origin.to_path_buf(),
+                        row: r + 1,
+                        column: self.names[k].clone(),
+                        found: v.to_string(),
+                        expected: format!(
+                            "a finite number of magnitude at most {:e} (nothing was written)",
+                            self.limits[k]
+                        ),
+                    });
+                }
+                // `+ 0.0` turns -0.0 into 0.0 so that signs of zero never differ between runs.
+                match decimals {
+                    // Infallible: writing to a String.
+                    EXACT => {
+                        let _ = write!(line, "{}", v + 0.0);
+                    }
+                    _ => crate::fixed_decimal::push_fixed(&mut line, v + 0.0, decimals),
+                }
+                ends.push(line.len());
+            }
+            let numbers = ends
+                .iter()
+                .scan(0, |from, &to| Some(&line[std::mem::replace(from, to)..to]));
+            let extra = rec.extra.iter().map(|(_, c)| c[r].as_str());
+            w.write_record(numbers.chain(extra))
+                .map_err(|e| csv_io(self.origin, e))?;
+        }
+        w.into_inner()
+            .map_err(|e| CoreError::io(self.origin, std::io::Error::other(e.to_string())))
+    }
 }
 
 /// Marks a cell written with the shortest text that reads back as exactly the same number.
@@ -562,7 +635,9 @@ pub fn stage(rec: &Recording, path: impl AsRef<Path>) -> Result<atomic_file::Sta
 
 /// Formats a number the way [`write`] formats extra numeric columns (6 decimals, no -0).
 pub fn format_extra(x: f64) -> String {
-    format!("{:.6}", x + 0.0)
+    let mut s = String::new();
+    crate::fixed_decimal::push_fixed(&mut s, x + 0.0, 6);
+    s
 }
 
 #[cfg(test)]
