@@ -328,8 +328,8 @@ impl ValidFitConfig {
     fn fit_rows(
         &self,
         data: &Dataset,
-        rows: &dyn Fn(usize) -> bool,
-        select: &dyn Fn(usize) -> bool,
+        rows: &(dyn Fn(usize) -> bool + Sync),
+        select: &(dyn Fn(usize) -> bool + Sync),
         want_sd: bool,
     ) -> Result<RowsFit, IdentError> {
         let unit = |_: usize| Vec3::repeat(1.0);
@@ -338,8 +338,8 @@ impl ValidFitConfig {
         // over at most 101 knots) a few hundred per knot, not all of them. The coefficients,
         // residuals and noise model kept are then fitted on every row, once.
         let stride = data.len().div_ceil(structure::MAX_CHOICE_ROWS).max(1);
-        let fit_with = |rows: &dyn Fn(usize) -> bool,
-                        weight: &dyn Fn(usize) -> Vec3,
+        let fit_with = |rows: &(dyn Fn(usize) -> bool + Sync),
+                        weight: &(dyn Fn(usize) -> Vec3 + Sync),
                         weight_at: &dyn Fn(f64) -> Vec3|
          -> Result<Structure, IdentError> {
             let (part, estimation) = match &self.0.family {
@@ -400,7 +400,7 @@ impl ValidFitConfig {
         // then fits the weighted coefficients on every row once (after the passes).
         let sampled = reweight && stride > 1;
         let spread = |k: usize| k.is_multiple_of(stride) && rows(k);
-        let on: &dyn Fn(usize) -> bool = if sampled { &spread } else { rows };
+        let on: &(dyn Fn(usize) -> bool + Sync) = if sampled { &spread } else { rows };
         // The noise model of a structure's residuals on `on`, with every row's residuals when
         // `on` is every row.
         let noise_of = |s: &Structure| -> (Option<SdModel>, Option<Vec<Vec3>>) {

@@ -9,6 +9,7 @@
 //!
 //! Both accept per-row, per-axis weights (inverse noise variances for the heteroscedastic fit).
 use nalgebra::DMatrix;
+use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use crate::IdentError;
@@ -79,28 +80,53 @@ pub(crate) fn singular(data: &Dataset, what: &str, e: SolveError) -> IdentError 
 /// Smallest normalized membership with which a row enters a local model's global fit.
 pub const MIN_MEMBERSHIP: f64 = 1e-12;
 
+/// Rows one worker accumulates at a time when a fit runs on every row of a long recording.
+/// The chunks are fixed by the row count alone and summed in order, so the coefficients do not
+/// depend on the number of threads.
+pub const FIT_CHUNK_ROWS: usize = 1 << 16;
+
 /// Fits the network on the rows where `use_row` is true, weighting row `k` on axis `a` by
 /// `weight(k)[a]`.
 pub fn fit(
     data: &Dataset,
     partition: &RbfPartition,
     estimation: Estimation,
-    use_row: &dyn Fn(usize) -> bool,
-    weight: &dyn Fn(usize) -> Vec3,
+    use_row: &(dyn Fn(usize) -> bool + Sync),
+    weight: &(dyn Fn(usize) -> Vec3 + Sync),
 ) -> Result<LocalLinearNet, IdentError> {
     if data.group_index().is_some() {
         // Rows of equal input and regressors summed first: the same normal equations, with
         // the memberships computed once per distinct input.
         return crate::row_groups::Groups::of(data, use_row, weight).fit(partition, estimation);
     }
-    fit_weighted_rows(
-        data,
-        partition,
-        estimation,
-        (0..data.len())
+    let rows_of = |range: std::ops::Range<usize>| {
+        range
             .filter(|&k| use_row(k))
-            .map(|k| (data.u[k], data.regressors(k), data.y[k], weight(k))),
-    )
+            .map(|k| (data.u[k], data.regressors(k), data.y[k], weight(k)))
+    };
+    let p = data.spec.regressor_count();
+    if data.len() <= FIT_CHUNK_ROWS {
+        return solve(
+            data,
+            partition,
+            accumulate(p, partition, estimation, rows_of(0..data.len())),
+        );
+    }
+    // A long recording: its chunks accumulated on every core, summed in row order.
+    let starts: Vec<usize> = (0..data.len()).step_by(FIT_CHUNK_ROWS).collect();
+    let parts: Vec<Accumulated> = starts
+        .par_iter()
+        .map(|&a| {
+            let rows = rows_of(a..(a + FIT_CHUNK_ROWS).min(data.len()));
+            accumulate(p, partition, estimation, rows)
+        })
+        .collect();
+    let mut parts = parts.into_iter();
+    let mut total = parts.next().expect("a long recording has a first chunk");
+    for part in parts {
+        total.merge(&part);
+    }
+    solve(data, partition, total)
 }
 
 /// Fits the network on weighted rows `(u, regressors, y, weight per axis)`. A row may stand
@@ -112,10 +138,50 @@ pub(crate) fn fit_weighted_rows<'r>(
     estimation: Estimation,
     rows: impl Iterator<Item = (f64, &'r [f64], Vec3, Vec3)>,
 ) -> Result<LocalLinearNet, IdentError> {
-    let m = partition.len();
     let p = data.spec.regressor_count();
+    solve(data, partition, accumulate(p, partition, estimation, rows))
+}
+
+/// The normal equations of a network's fit, before the solve.
+enum Accumulated {
+    /// One set per local model and axis.
+    Local(Vec<[NormalEquations; 3]>),
+    /// One set per axis over every local model's regressors.
+    Global(Box<[NormalEquations; 3]>),
+}
+
+impl Accumulated {
+    /// Adds the rows `other` holds.
+    fn merge(&mut self, other: &Accumulated) {
+        match (self, other) {
+            (Accumulated::Local(a), Accumulated::Local(b)) => {
+                for (x, y) in a.iter_mut().zip(b) {
+                    for k in 0..3 {
+                        x[k].merge(&y[k]);
+                    }
+                }
+            }
+            (Accumulated::Global(a), Accumulated::Global(b)) => {
+                for (x, y) in a.iter_mut().zip(b.iter()) {
+                    x.merge(y);
+                }
+            }
+            // Both come from the same estimation.
+            _ => {}
+        }
+    }
+}
+
+/// The normal equations of `rows` for `p` regressors per local model.
+fn accumulate<'r>(
+    p: usize,
+    partition: &RbfPartition,
+    estimation: Estimation,
+    rows: impl Iterator<Item = (f64, &'r [f64], Vec3, Vec3)>,
+) -> Accumulated {
+    let m = partition.len();
     let mut phi = vec![0.0; m];
-    let coefficients = match estimation {
+    match estimation {
         Estimation::Local => {
             let mut ne: Vec<[NormalEquations; 3]> = (0..m)
                 .map(|_| std::array::from_fn(|_| NormalEquations::new(p, 1)))
@@ -128,16 +194,7 @@ pub(crate) fn fit_weighted_rows<'r>(
                     }
                 }
             }
-            let mut out: [Vec<Vec<f64>>; 3] = Default::default();
-            for (i, per_axis) in ne.iter().enumerate() {
-                for a in 0..3 {
-                    let th = per_axis[a]
-                        .solve()
-                        .map_err(|e| singular(data, &format!("local model {}", i + 1), e))?;
-                    out[a].push(th.column(0).iter().copied().collect());
-                }
-            }
-            out
+            Accumulated::Local(ne)
         }
         Estimation::Global => {
             let mut ne: [NormalEquations; 3] =
@@ -161,6 +218,33 @@ pub(crate) fn fit_weighted_rows<'r>(
                     ne[a].add_sparse(&cols, &z, &[y[a]], w[a]);
                 }
             }
+            Accumulated::Global(Box::new(ne))
+        }
+    }
+}
+
+/// Solves accumulated normal equations for the network's coefficients.
+fn solve(
+    data: &Dataset,
+    partition: &RbfPartition,
+    acc: Accumulated,
+) -> Result<LocalLinearNet, IdentError> {
+    let m = partition.len();
+    let p = data.spec.regressor_count();
+    let coefficients = match acc {
+        Accumulated::Local(ne) => {
+            let mut out: [Vec<Vec<f64>>; 3] = Default::default();
+            for (i, per_axis) in ne.iter().enumerate() {
+                for a in 0..3 {
+                    let th = per_axis[a]
+                        .solve()
+                        .map_err(|e| singular(data, &format!("local model {}", i + 1), e))?;
+                    out[a].push(th.column(0).iter().copied().collect());
+                }
+            }
+            out
+        }
+        Accumulated::Global(ne) => {
             let mut out: [Vec<Vec<f64>>; 3] = Default::default();
             for a in 0..3 {
                 let th: DMatrix<f64> = ne[a]

@@ -99,3 +99,53 @@ fn a_long_recording_finds_its_noise_law_and_its_disturbance() {
     // (Measured 0.091 µT, the same as when every reweighting pass used every row.)
     assert!(worst < 0.15, "worst error {worst} µT over the levels");
 }
+
+/// A fit on every row of a long recording whose input never repeats (a current, a flight's
+/// throttle) sums its rows in chunks on every core: the coefficients must not depend on the
+/// number of threads, and must still be the disturbance's.
+#[test]
+fn a_long_fit_on_every_row_does_not_depend_on_the_thread_count() {
+    use magstand_ident::local_linear::{Estimation, FIT_CHUNK_ROWS};
+    let n = 3 * FIT_CHUNK_ROWS + 123;
+    let mut rec = recording(n);
+    // A slow sweep with a wobble: no two rows share an input, but for the motors-off rows at
+    // the end (the eq. 9 reference).
+    rec.thr[0] = (0..n)
+        .map(|r| match r < n - 2000 {
+            true => 0.5 + 0.45 * (r as f64 * 2e-4).sin() + 1e-3 * (r as f64 * 0.77).sin(),
+            false => 0.0,
+        })
+        .collect();
+    for r in 0..n {
+        let u = rec.thr[0][r];
+        let noise = rec.mag_ut[r] - Vec3::new(20.0, 1.0, 45.0) - truth(0.0);
+        rec.mag_ut[r] = Vec3::new(20.0, 1.0, 45.0) + truth(u) + noise;
+    }
+    let data = Dataset::from_recording(&rec, InputKind::Throttle, "sweep").unwrap();
+    assert!(data.group_index().is_none(), "the input must not repeat");
+    for estimation in [Estimation::Local, Estimation::Global] {
+        let config = FitConfig::fixed(vec![0.0, 0.5, 1.0], 4.0, estimation)
+            .check()
+            .unwrap();
+        let on = |threads: usize| {
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap()
+                .install(|| config.fit(&data).unwrap())
+        };
+        let (one, two) = (on(1), on(2));
+        assert_eq!(
+            serde_json::to_string(&one.structure).unwrap(),
+            serde_json::to_string(&two.structure).unwrap(),
+            "{estimation:?}: coefficients differ between 1 and 2 threads"
+        );
+        // Three local lines follow the cubic to within its curvature between the centres.
+        let mut s = one.scratch();
+        let worst = (0..=20)
+            .map(|i| 0.1 + 0.8 * i as f64 / 20.0)
+            .map(|u| (one.dist_at_input(u, &mut s) - truth(u)).norm())
+            .fold(0.0, f64::max);
+        assert!(worst < 1.0, "{estimation:?}: worst error {worst} µT");
+    }
+}
