@@ -41,8 +41,8 @@ impl Built {
 /// Replays of the recording already made, by the physics and the timing they were made with
 /// (the magnetometer's delay left out): the searches evaluate the same physics many times (an
 /// effect whose parameters the replay does not see, a delay searched over one replay, the
-/// accepted terms' physics in every round). A few of the latest are kept, so memory stays at a
-/// few replays of the recording.
+/// accepted terms' physics in every round). A few of the latest are kept, within
+/// [`REPLAY_CACHE_BYTES`].
 #[derive(Default)]
 pub(crate) struct ReplayCache(Mutex<Vec<(ReplayKey, Arc<Trace>)>>);
 
@@ -54,8 +54,18 @@ struct ReplayKey {
     recorded_voltage: bool,
 }
 
-/// Replays a cache keeps.
+/// Most replays a cache keeps.
 const REPLAYS_KEPT: usize = 6;
+
+/// Memory the kept replays may take, bytes: a long log keeps fewer of them (at least the
+/// latest), so a diagnosis's memory stays a small multiple of its recording's.
+const REPLAY_CACHE_BYTES: usize = 256 << 20;
+
+/// About how many bytes a replay of `t` holds.
+fn trace_bytes(t: &Trace) -> usize {
+    let columns = 3 * t.speed.len() + 3 + t.modules.len() + 3;
+    t.len() * columns * std::mem::size_of::<f64>()
+}
 
 impl ReplayCache {
     /// The replay of `scenario` at `lead`, made by `make` unless one is kept; the latest used
@@ -87,7 +97,8 @@ impl ReplayCache {
         let trace = Arc::new(make());
         let mut kept = lock();
         kept.insert(0, (key, Arc::clone(&trace)));
-        kept.truncate(REPLAYS_KEPT);
+        let fit = (REPLAY_CACHE_BYTES / trace_bytes(&trace).max(1)).clamp(1, REPLAYS_KEPT);
+        kept.truncate(fit);
         trace
     }
 }
