@@ -22,9 +22,9 @@ pub struct Split {
     pub block_s: f64,
 }
 
-/// Each row's time with the data's gaps closed to nothing, from the first row, s.
-fn time_with_data_s(t_s: &[f64]) -> Vec<f64> {
-    let starts = crate::rows_after_gaps(t_s);
+/// Each row's time with the data's gaps closed to nothing, from the first row, s; `starts`
+/// are the rows after a gap ([`crate::rows_after_gaps`]).
+fn time_with_data_s(t_s: &[f64], starts: &[usize]) -> Vec<f64> {
     let mut active = Vec::with_capacity(t_s.len());
     let mut closed = 0.0;
     for (r, &t) in t_s.iter().enumerate() {
@@ -38,7 +38,10 @@ fn time_with_data_s(t_s: &[f64]) -> Vec<f64> {
 
 /// The time the recording holds data, s: its span with every gap closed to nothing.
 pub fn duration_with_data_s(t_s: &[f64]) -> f64 {
-    time_with_data_s(t_s).last().copied().unwrap_or(0.0)
+    time_with_data_s(t_s, &crate::rows_after_gaps(t_s))
+        .last()
+        .copied()
+        .unwrap_or(0.0)
 }
 
 impl Split {
@@ -49,15 +52,16 @@ impl Split {
     /// time: a new block starts after each gap, so no block spans one.
     pub fn new(t_s: &[f64], block_s: f64, holdout_every: usize) -> Split {
         let starts = crate::rows_after_gaps(t_s);
-        let active = time_with_data_s(t_s);
+        let active = time_with_data_s(t_s, &starts);
         let mut block: Vec<usize> = Vec::with_capacity(t_s.len());
         let mut offset = 0;
         for (r, a) in active.iter().enumerate() {
-            let b = (a / block_s).floor() as usize + offset;
-            if r > 0 && starts.binary_search(&r).is_ok() && b <= block[r - 1] {
-                offset += block[r - 1] + 1 - b;
+            let b = (a / block_s).floor() as usize;
+            // After a gap, a new block even where the closed time stays within the last one.
+            if r > 0 && starts.binary_search(&r).is_ok() && b + offset <= block[r - 1] {
+                offset = block[r - 1] + 1 - b;
             }
-            block.push((a / block_s).floor() as usize + offset);
+            block.push(b + offset);
         }
         let every = holdout_every.max(1);
         let holdout = block.iter().map(|b| b % every == every - 1).collect();

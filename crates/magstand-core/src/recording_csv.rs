@@ -493,10 +493,8 @@ pub fn write_to(rec: &Recording, mut out: impl Write, origin: &Path) -> Result<(
     };
     let mut head = csv::WriterBuilder::new().from_writer(Vec::new());
     head.write_record(&names).map_err(|e| csv_io(origin, e))?;
-    let head = head
-        .into_inner()
-        .map_err(|e| CoreError::io(origin, std::io::Error::other(e.to_string())))?;
-    out.write_all(&head).map_err(|e| CoreError::io(origin, e))?;
+    out.write_all(&written(head, origin)?)
+        .map_err(|e| CoreError::io(origin, e))?;
     let batch_rows = WRITE_CHUNK_ROWS * 4 * rayon::current_num_threads().max(1);
     let mut start = 0;
     while start < rec.len() {
@@ -526,6 +524,12 @@ fn csv_io(origin: &Path, e: csv::Error) -> CoreError {
         csv::ErrorKind::Io(e) => CoreError::io(origin, e),
         other => CoreError::io(origin, std::io::Error::other(format!("{other:?}"))),
     }
+}
+
+/// The text a CSV writer into memory holds.
+fn written(w: csv::Writer<Vec<u8>>, origin: &Path) -> Result<Vec<u8>, CoreError> {
+    w.into_inner()
+        .map_err(|e| CoreError::io(origin, std::io::Error::other(e.to_string())))
 }
 
 /// What formatting the rows of one recording needs.
@@ -600,8 +604,7 @@ impl RowText<'_> {
             w.write_record(numbers.chain(extra))
                 .map_err(|e| csv_io(self.origin, e))?;
         }
-        w.into_inner()
-            .map_err(|e| CoreError::io(self.origin, std::io::Error::other(e.to_string())))
+        written(w, self.origin)
     }
 }
 

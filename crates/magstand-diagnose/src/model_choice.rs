@@ -178,7 +178,7 @@ pub fn choose_model(
     let throttle = throttle?;
     // The split every family is judged on: the identification fit's held-out rows, which the
     // physics fit held out too (one split, `magstand_core::held_out`, same blocks).
-    let mask = throttle.2.clone();
+    let mask = &throttle.2;
     let blocks = magstand_ident::time_blocks_of(&rec.t_s);
     let physics_residuals = physics.as_ref().map_err(Clone::clone).and_then(|p| {
         let reading = p
@@ -208,7 +208,7 @@ pub fn choose_model(
             residuals_ut: physics_residuals,
         },
     ];
-    let choice = choose(&contenders, &mask, &blocks).ok_or_else(|| DiagnoseError::Recording {
+    let choice = choose(&contenders, mask, &blocks).ok_or_else(|| DiagnoseError::Recording {
         origin: origin.into(),
         message: "no model family could be judged on the held-out rows".into(),
     })?;

@@ -105,27 +105,27 @@ pub fn fit(
             .map(|k| (data.u[k], data.regressors(k), data.y[k], weight(k)))
     };
     let p = data.spec.regressor_count();
-    if data.len() <= FIT_CHUNK_ROWS {
-        return solve(
-            data,
-            partition,
-            accumulate(p, partition, estimation, rows_of(0..data.len())),
-        );
-    }
-    // A long recording: its chunks accumulated on every core, summed in row order.
-    let starts: Vec<usize> = (0..data.len()).step_by(FIT_CHUNK_ROWS).collect();
-    let parts: Vec<Accumulated> = starts
+    // Chunks accumulated on every core, summed in row order: one chunk for a recording of
+    // up to FIT_CHUNK_ROWS rows (and one, empty, for none: the solve says there is no data).
+    let n = data.len();
+    let starts: Vec<usize> = (0..n.max(1)).step_by(FIT_CHUNK_ROWS).collect();
+    let total = starts
         .par_iter()
         .map(|&a| {
-            let rows = rows_of(a..(a + FIT_CHUNK_ROWS).min(data.len()));
-            accumulate(p, partition, estimation, rows)
+            accumulate(
+                p,
+                partition,
+                estimation,
+                rows_of(a..(a + FIT_CHUNK_ROWS).min(n)),
+            )
         })
-        .collect();
-    let mut parts = parts.into_iter();
-    let mut total = parts.next().expect("a long recording has a first chunk");
-    for part in parts {
-        total.merge(&part);
-    }
+        .collect::<Vec<Accumulated>>()
+        .into_iter()
+        .reduce(|mut sum, part| {
+            sum.merge(&part);
+            sum
+        })
+        .expect("at least one chunk");
     solve(data, partition, total)
 }
 
