@@ -198,6 +198,26 @@ pub fn injections() -> Vec<Injection> {
     ]
 }
 
+/// Injections of other sizes, lags and directions, never looked at while the diagnosis was
+/// developed: the suite's held-out check that it was not fitted to [`injections`].
+pub fn held_out_injections() -> Vec<Injection> {
+    vec![
+        Injection::MagLate { delay_s: 0.2 },
+        Injection::CurrentLag {
+            tau_s: 0.8,
+            ut_per_a: [-0.25, 0.2, 0.15],
+        },
+        Injection::Hysteresis {
+            play_a: 3.0,
+            ut_per_a: [-0.2, 0.3, -0.25],
+        },
+        Injection::BoardHeating {
+            tau_s: 120.0,
+            peak_ut: [-0.8, 1.0, 0.5],
+        },
+    ]
+}
+
 /// The smallest step between the logged readings (the log's resolution), or 0 when they are
 /// not on a grid.
 fn resolution_ut(mag: &[Vec3]) -> f64 {

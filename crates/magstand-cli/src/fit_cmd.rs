@@ -176,13 +176,14 @@ fn take_out_earth_field(
     let p = prepare_flight(rec, &cfg, origin)?;
     let e = p.earth_ned_ut;
     let summary = format!(
-        "Earth field ({}): N {:.2} E {:.2} D {:.2} uT (|e| {:.2} uT, inclination {:.1} deg); magnetometer {:.3} s behind the {}; stacked-fit residual {:.2} uT RMS; attitude: tilt up to {:.0} deg, {:.0} deg of heading covered",
+        "Earth field ({}): N {:.2} E {:.2} D {:.2} uT (|e| {:.2} uT, inclination {:.1} deg); magnetometer samples {:.3} s behind the attitude and {:.3} s behind the {}; stacked-fit residual {:.2} uT RMS; attitude: tilt up to {:.0} deg, {:.0} deg of heading covered",
         model_name,
         e.x,
         e.y,
         e.z,
         e.norm(),
         e.z.atan2(e.xy().norm()).to_degrees(),
+        p.attitude_delay_s,
         p.delay_s,
         match cfg.input {
             FlightInput::Current => "current",

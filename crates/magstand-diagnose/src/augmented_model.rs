@@ -43,7 +43,7 @@ use serde::{Deserialize, Serialize};
 use magstand_core::recording_csv::format_extra;
 use magstand_core::{AXES, Recording, Vec3};
 use magstand_sim::Scenario;
-use magstand_sim::replay::replay;
+use magstand_sim::replay::{Logged, replay_logged};
 
 use crate::DiagnoseError;
 use crate::effects::{Context, Effect, catalog};
@@ -102,6 +102,11 @@ pub struct AugmentedModel {
     /// recording to compensate then needs that column. Absent (false) in older files.
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub follow_recorded_voltage: bool,
+    /// Whether the replay's supply current is the recording's logged one (`bat_a`), as a
+    /// diagnosis of a flight with its current logged has it: a recording to compensate then
+    /// needs that column. Absent (false) in older files.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub follow_recorded_current: bool,
 }
 
 /// Largest noise-law coefficient or floor a model file may carry, µT² ((1e5 µT)²).
@@ -308,6 +313,11 @@ impl AugmentedModel {
                 "the model replays the logged supply voltage, and this recording has no `bat_v` column: expected one (the model was fitted on a recording that had it)".into(),
             ));
         }
+        if self.follow_recorded_current && rec.bat_a.is_none() {
+            return Err(bad(
+                "the model follows the logged supply current, and this recording has no `bat_a` column: expected one (the model was fitted on a flight that had it)".into(),
+            ));
+        }
         let effects: Vec<Box<dyn Effect>> = catalog();
         let mut terms: Vec<(&dyn Effect, &[f64])> = Vec::new();
         for t in &self.effects {
@@ -318,7 +328,14 @@ impl AugmentedModel {
             terms.push((e.as_ref(), t.theta.as_slice()));
         }
         let split = Split::new(&rec.t_s, self.block_s, self.holdout_every);
-        let nominal_trace = replay(&nominal, &rec.t_s, &rec.thr, None, 0.5);
+        let logged = Logged {
+            bat_v: None,
+            bat_a: rec
+                .bat_a
+                .as_deref()
+                .filter(|_| self.follow_recorded_current),
+        };
+        let nominal_trace = replay_logged(&nominal, &rec.t_s, &rec.thr, logged, 0.5);
         let ctx = Context {
             rec,
             nominal: &nominal,
@@ -328,6 +345,7 @@ impl AugmentedModel {
             command_lead: self.command_lead,
             flight: false,
             follow_recorded_voltage: self.follow_recorded_voltage,
+            follow_recorded_current: self.follow_recorded_current,
             replays: Default::default(),
         };
         // Each effect's parameters as its own search defines them: as many as it searches,

@@ -29,8 +29,10 @@ impl Design {
     /// function of its rotor speed while its ESC drives it (idle current, then powers of speed;
     /// the cubic term lets the calibration follow a current law other than the nominal one) and
     /// zero while it coasts. Columns are sums over motors, because the nominal stand treats all
-    /// motors alike.
-    pub fn baseline(trace: &Trace) -> Design {
+    /// motors alike. With `measured_current`, the trace's supply current is a measured one
+    /// (a flight's `bat_a`), which the commands' speeds only approximate: the field linear in
+    /// it is a column of its own.
+    pub fn baseline(trace: &Trace, measured_current: bool) -> Design {
         let n = trace.len();
         let mut d = Design::default();
         d.push("reference", vec![1.0; n]);
@@ -57,6 +59,9 @@ impl Design {
         d.push("driven", driven);
         for (k, column) in powers.into_iter().enumerate() {
             d.push(format!("speed^{}", k + 1), column);
+        }
+        if measured_current {
+            d.push("current_a", trace.total_a.clone());
         }
         d
     }

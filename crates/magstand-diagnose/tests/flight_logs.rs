@@ -16,8 +16,15 @@ const EARTH_NED_UT: [f64; 3] = [21.0, 1.5, -48.0];
 
 /// Five minutes of flight written by this test's own laws: slow turns through every heading
 /// with rolling and pitching, the throttle stepping in the hover range, a disturbance that
-/// follows its own current law, and the magnetometer 0.12 s behind the commands.
+/// follows its own current law 0.12 s behind the commands, and the magnetometer's samples on
+/// time against the attitude. The current is logged.
 fn flight() -> Recording {
+    flight_with(|_, _| Vec3::zeros())
+}
+
+/// [`flight`] with `extra(t_s, current_a)` added to the readings, for the logged current
+/// before each row.
+fn flight_with(mut extra: impl FnMut(&[f64], &[f64]) -> Vec3) -> Recording {
     let n = (300.0 * HZ) as usize;
     let mut steps = Normal(0x5eed_f1e5);
     let mut level = 0.5;
@@ -44,17 +51,20 @@ fn flight() -> Recording {
     let gain_ut_per_a = Vec3::new(0.05, -0.03, 0.08);
     let lag = (DELAY_S * HZ).round() as usize;
     let mut noise = Normal(0x0dd_ba11);
+    let current_a: Vec<f64> = (0..n)
+        .map(|k| 2.0 + 30.0 * thr[k.saturating_sub(lag)].powf(1.5))
+        .collect();
     let mag_ut = (0..n)
         .map(|k| {
-            let u = thr[k.saturating_sub(lag)];
-            let current_a = 2.0 + 30.0 * u.powf(1.5);
             attitude[k].inverse() * earth
                 + offset
-                + gain_ut_per_a * current_a
+                + gain_ut_per_a * current_a[k]
+                + extra(&t_s[..=k], &current_a[..=k])
                 + Vec3::from_fn(|_, _| 0.1 * noise.draw())
         })
         .collect();
     Recording {
+        bat_a: Some(current_a),
         t_s,
         thr: vec![thr.clone(); 4],
         overall_only: false,
@@ -82,10 +92,11 @@ fn a_flight_is_diagnosed_on_the_attitude_aware_baseline() {
             .map(|p| p.value)
             .unwrap_or_else(|| panic!("no {name} in {:?}", d.baseline.calibration))
     };
-    let delay = value("flight.mag_delay_s");
+    // The samples are on time against the attitude; the disturbance lags the commands.
+    let (age, delay) = (value("flight.mag_delay_s"), value("flight.command_delay_s"));
     assert!(
-        (delay - DELAY_S).abs() < 0.03,
-        "delay {delay} s (true {DELAY_S})"
+        age < 0.03 && (delay - DELAY_S).abs() < 0.03,
+        "samples {age} s behind the attitude (true 0), {delay} s behind the commands (true {DELAY_S})"
     );
     for (k, axis) in ["n", "e", "d"].iter().enumerate() {
         let e = value(&format!("flight.earth_{axis}_ut"));
@@ -118,5 +129,40 @@ fn a_flight_without_attitude_is_refused() {
     assert!(
         m.contains("flight.csv") && m.contains("att_qw") && m.contains("flight"),
         "{m}"
+    );
+}
+
+#[test]
+fn a_field_lagging_the_logged_current_of_a_flight_is_named() {
+    // Eddy currents: the field of 0.4 µT/A follows the measured current through a 0.6 s lag,
+    // slower than any spin-up, so its departure from the current is physics of its own.
+    let gain = Vec3::new(0.4, -0.3, 0.5);
+    let (tau_s, mut state, mut last) = (0.6, None::<f64>, 0.0);
+    let rec = flight_with(|t, a| {
+        let k = t.len() - 1;
+        let s = state.get_or_insert(a[0]);
+        if k > 0 {
+            *s += (a[k - 1] - *s) * (1.0 - (-(t[k] - last) / tau_s).exp());
+        }
+        last = t[k];
+        gain * (*s - a[k])
+    });
+    let d = diagnose(
+        &rec,
+        "eddy.csv",
+        &unstated_nominal().unwrap(),
+        &DiagnoseConfig::default().check().unwrap(),
+    )
+    .unwrap();
+    assert_eq!(d.verdict, ["current_lag"], "{}", d.summary());
+    let tau = d.effects[0]
+        .params
+        .iter()
+        .find(|p| p.name == "spinup_tau_s")
+        .map(|p| p.value);
+    assert!(
+        tau.is_some_and(|v| (v - tau_s).abs() < 0.15),
+        "lag {tau:?} s (true {tau_s}): {:?}",
+        d.effects[0].params
     );
 }

@@ -43,6 +43,7 @@ fn coefficients_survive_the_file_bit_for_bit() {
         method: Some("physics".into()),
         choice: None,
         follow_recorded_voltage: true,
+        follow_recorded_current: true,
     };
     let path = std::env::temp_dir().join(format!("magstand-bit-exact-{}.json", std::process::id()));
     model.save(&path).unwrap();

@@ -6,15 +6,18 @@
 //! `b` per axis, and `u` the overall throttle or the current. With the attitude varying
 //! independently of the throttle, one stacked least squares over all three axes separates
 //! `e` (shared by the axes) from `b` and from a cubic per axis standing in for `d`; the delay
-//! of the magnetometer stream against the command stream is the one that minimizes the
-//! residual over a grid, refined by golden section.
+//! of the magnetometer stream is the one that minimizes the residual over a grid, refined by
+//! golden section, in two steps: first the age of the magnetometer's samples at their time
+//! stamps, which moves the attitude and the commands alike (the reading is the field at the
+//! moment it was sampled); then, with the attitude held there, the delay of the disturbance
+//! behind the commands (the motors' and the current's own lag on top of the sample's age).
 //!
 //! The result is a stand-equivalent recording: the Earth field's attitude dependence taken
 //! out (`m - R^T e + e`, the reading as if the vehicle sat level facing north) and the inputs
 //! moved by the delay, which the ordinary fit then models as usual. The sensor is assumed
 //! calibrated (soft iron removed), as PX4 and ArduPilot log it.
 use magstand_core::interpolation::{interpolate, locate};
-use magstand_core::{Recording, Vec3};
+use magstand_core::{Quat, Recording, Vec3};
 use nalgebra::Matrix3;
 
 use crate::IdentError;
@@ -76,8 +79,12 @@ pub struct FlightPrep {
     pub recording: Recording,
     /// Earth field used, north-east-down, µT.
     pub earth_ned_ut: Vec3,
-    /// Delay of the magnetometer behind the command stream, s.
+    /// Delay of the magnetometer behind the command stream, s: the inputs of the
+    /// stand-equivalent recording are moved later by it.
     pub delay_s: f64,
+    /// Delay of the magnetometer behind the attitude stream, s: the age of its samples at their
+    /// time stamps, by which the Earth field is turned.
+    pub attitude_delay_s: f64,
     /// RMS residual of the stacked fit at that delay, µT.
     pub residual_rms_ut: f64,
     /// The eq. 9 reference the stacked fit implies: the stand-equivalent reading at input
@@ -99,6 +106,31 @@ pub struct FlightPrep {
 fn delayed(t: &[f64], u: &[f64], delay_s: f64) -> Vec<f64> {
     t.iter()
         .map(|&x| interpolate(u, locate(t, x - delay_s)))
+        .collect()
+}
+
+/// The attitude at time `x`, between the logged rows (the shorter turn between neighbours;
+/// held at the ends).
+fn attitude_at(t: &[f64], att: &[Quat], x: f64) -> Quat {
+    let (k, f) = locate(t, x);
+    if f == 0.0 {
+        return att[k];
+    }
+    // The relative turn's rotation vector is the short way round, whatever the quaternions'
+    // signs.
+    let step = (att[k].inverse() * att[k + 1]).scaled_axis();
+    att[k] * Quat::from_scaled_axis(step * f)
+}
+
+/// The rotation from north-east-down to the body at every row's time less `delay_s` (R^T).
+fn to_body_at(t: &[f64], att: &[Quat], delay_s: f64) -> Vec<Matrix3<f64>> {
+    t.iter()
+        .map(|&x| {
+            attitude_at(t, att, x - delay_s)
+                .to_rotation_matrix()
+                .matrix()
+                .transpose()
+        })
         .collect()
 }
 
@@ -300,39 +332,66 @@ pub fn prepare_flight(
             .clone()
             .ok_or_else(|| data("the current `input` needs the bat_a column".into()))?,
     };
-    let to_body: Vec<Matrix3<f64>> = att
-        .iter()
-        .map(|q| q.to_rotation_matrix().matrix().transpose())
-        .collect();
-    let rss_at = |d: f64| -> Result<Stacked, IdentError> {
-        stacked(rec, &to_body, &delayed(&rec.t_s, &u, d), cfg.earth, origin)
-    };
-    // Grid over the delay, then golden section around the best grid point. The fit at no
-    // delay comes first so that an error in the data is reported as such.
-    rss_at(0.0)?;
+    // Grid over a delay, then golden section around the best grid point.
     let dt = rec.typical_interval_s().max(1e-6);
     let steps = ((cfg.max_delay_s / (dt / 2.0)).ceil() as usize).clamp(1, 60);
-    let (delay, _) = magstand_core::bounded_search::minimize(
-        magstand_core::bounded_search::Grid {
-            lo: 0.0,
-            hi: cfg.max_delay_s,
-            points: steps + 1,
-        },
-        1e-4,
-        20,
-        |d| rss_at(d).map_or(f64::INFINITY, |r| r.rms_ut),
-    );
-    let best = (delay, rss_at(delay)?);
     let h = cfg.max_delay_s / steps as f64;
-    let (
-        delay_s,
-        Stacked {
-            earth_ned_ut: earth,
-            rms_ut: rms,
-            earth_var,
-            offset_ut,
-        },
-    ) = best;
+    let search = |rms_at: &dyn Fn(f64) -> f64| {
+        magstand_core::bounded_search::minimize(
+            magstand_core::bounded_search::Grid {
+                lo: 0.0,
+                hi: cfg.max_delay_s,
+                points: steps + 1,
+            },
+            1e-4,
+            20,
+            rms_at,
+        )
+        .0
+    };
+    let rms = |r: Result<Stacked, IdentError>| r.map_or(f64::INFINITY, |r| r.rms_ut);
+    // The fit at no delay comes first so that an error in the data is reported as such.
+    let undelayed = to_body_at(&rec.t_s, att, 0.0);
+    stacked(rec, &undelayed, &u, cfg.earth, origin)?;
+    // The sample's age moves the attitude and the inputs together; the disturbance may lag
+    // the commands further. Each delay is searched with the other held, from the two moved
+    // together, until neither moves by more than a tenth of the grid step.
+    let at_delays = |attitude: f64, command: f64| {
+        let to_body = to_body_at(&rec.t_s, att, attitude);
+        rms(stacked(
+            rec,
+            &to_body,
+            &delayed(&rec.t_s, &u, command),
+            cfg.earth,
+            origin,
+        ))
+    };
+    let mut attitude_delay_s = search(&|d| at_delays(d, d));
+    let mut delay_s = attitude_delay_s;
+    for _ in 0..3 {
+        let command = search(&|d| at_delays(attitude_delay_s, d));
+        let attitude = search(&|d| at_delays(d, command));
+        let moved = (command - delay_s)
+            .abs()
+            .max((attitude - attitude_delay_s).abs());
+        (delay_s, attitude_delay_s) = (command, attitude);
+        if moved <= 0.1 * h {
+            break;
+        }
+    }
+    let to_body = to_body_at(&rec.t_s, att, attitude_delay_s);
+    let Stacked {
+        earth_ned_ut: earth,
+        rms_ut: rms,
+        earth_var,
+        offset_ut,
+    } = stacked(
+        rec,
+        &to_body,
+        &delayed(&rec.t_s, &u, delay_s),
+        cfg.earth,
+        origin,
+    )?;
 
     let mut out = rec.clone();
     for m in out.thr.iter_mut() {
@@ -341,18 +400,24 @@ pub fn prepare_flight(
             .map(|v| v.clamp(0.0, 1.0))
             .collect();
     }
+    // The logged supply is measured, motors' lag and all: it moves by the samples' age alone,
+    // unless it is the input whose delay was searched.
+    let supply_delay_s = match cfg.input {
+        FlightInput::Current => delay_s,
+        FlightInput::Throttle => attitude_delay_s,
+    };
     if let Some(a) = out.bat_a.as_mut() {
-        *a = delayed(&rec.t_s, a, delay_s);
+        *a = delayed(&rec.t_s, a, supply_delay_s);
     }
     if let Some(v) = out.bat_v.as_mut() {
-        *v = delayed(&rec.t_s, v, delay_s);
+        *v = delayed(&rec.t_s, v, supply_delay_s);
     }
     for (r, m) in out.mag_ut.iter_mut().enumerate() {
-        *m += earth - att[r].inverse() * earth;
+        *m += earth - to_body[r] * earth;
     }
     if let Some(g) = out.truth.as_mut() {
         for (r, f) in g.field_ut.iter_mut().enumerate() {
-            *f += earth - att[r].inverse() * earth;
+            *f += earth - to_body[r] * earth;
         }
     }
     let tilt = tilts.iter().copied().fold(0.0, f64::max);
@@ -377,7 +442,7 @@ pub fn prepare_flight(
             ));
         }
     }
-    if delay_s >= cfg.max_delay_s - 0.5 * h {
+    if delay_s.max(attitude_delay_s) >= cfg.max_delay_s - 0.5 * h {
         warnings.push(format!(
             "{origin}: the best delay is at the end of the search ({:.3} s): the magnetometer lags more (raise `max_delay_s`), or the delay is not identifiable from this log",
             cfg.max_delay_s
@@ -387,6 +452,7 @@ pub fn prepare_flight(
         recording: out,
         earth_ned_ut: earth,
         delay_s,
+        attitude_delay_s,
         residual_rms_ut: rms,
         reference_ut: {
             let (lo, hi) = u
@@ -544,8 +610,14 @@ mod tests {
     use magstand_core::Quat;
 
     /// A synthetic flight: yawing and tilting, a known Earth field, an offset and a quadratic
-    /// disturbance in a throttle that moves independently of the attitude, seen 0.1 s late.
+    /// disturbance in a throttle that moves independently of the attitude, seen `delay_s` late.
     fn flight(delay_s: f64) -> (Recording, Vec3) {
+        late_flight(0.0, delay_s)
+    }
+
+    /// [`flight`] with the magnetometer's samples `age_s` old at their stamps as well: the
+    /// attitude they saw is `age_s` old, their disturbance `age_s + delay_s`.
+    fn late_flight(age_s: f64, delay_s: f64) -> (Recording, Vec3) {
         let earth = Vec3::new(20.0, 2.0, 45.0);
         let b = Vec3::new(3.0, -4.0, 6.0);
         let n = 1200;
@@ -557,14 +629,15 @@ mod tests {
         };
         for k in 0..n {
             let t = k as f64 * 0.05;
-            let q =
-                Quat::from_euler_angles(0.3 * (0.2 * t).sin(), 0.25 * (0.13 * t).cos(), 0.1 * t);
-            let u = thr(t - delay_s);
+            let q = |t: f64| {
+                Quat::from_euler_angles(0.3 * (0.2 * t).sin(), 0.25 * (0.13 * t).cos(), 0.1 * t)
+            };
+            let u = thr(t - age_s - delay_s);
             let d = Vec3::new(8.0 * u * u, -5.0 * u, 12.0 * u * u);
             rec.t_s.push(t);
             rec.thr[0].push(thr(t));
-            rec.mag_ut.push(q.inverse() * earth + b + d);
-            rec.attitude.as_mut().unwrap().push(q);
+            rec.mag_ut.push(q(t - age_s).inverse() * earth + b + d);
+            rec.attitude.as_mut().unwrap().push(q(t));
         }
         (rec, earth)
     }
@@ -575,10 +648,16 @@ mod tests {
         let p = prepare_flight(&rec, &FlightConfig::default(), "synthetic").unwrap();
         assert!(
             (p.earth_ned_ut - earth).norm() < 0.05,
-            "{:?}",
-            p.earth_ned_ut
+            "{:?} at attitude delay {}",
+            p.earth_ned_ut,
+            p.attitude_delay_s
         );
-        assert!((p.delay_s - 0.1).abs() < 0.01, "{}", p.delay_s);
+        assert!(
+            (p.delay_s - 0.1).abs() < 0.01,
+            "{} {}",
+            p.delay_s,
+            p.attitude_delay_s
+        );
         assert!(p.warnings.is_empty(), "{:?}", p.warnings);
         // The stand-equivalent reading no longer depends on the attitude: it is e + b + d.
         let u = p.recording.thr[0][600];
@@ -588,6 +667,26 @@ mod tests {
             (p.recording.mag_ut[600] - expect).norm() < 0.1,
             "{:?} vs {expect:?}",
             p.recording.mag_ut[600]
+        );
+    }
+
+    #[test]
+    fn samples_stamped_late_move_the_attitude_and_the_commands_alike() {
+        // Before the attitude was delayed too, a late stream left the Earth field's turning
+        // 0.15 s out of step: tens of µT of residual at every turn, and a delay between.
+        let (rec, earth) = late_flight(0.15, 0.05);
+        let p = prepare_flight(&rec, &FlightConfig::default(), "late").unwrap();
+        assert!(
+            (p.attitude_delay_s - 0.15).abs() < 0.01 && (p.delay_s - 0.2).abs() < 0.01,
+            "attitude delay {} s (0.15 expected), command delay {} s (0.2 expected)",
+            p.attitude_delay_s,
+            p.delay_s
+        );
+        assert!(
+            (p.earth_ned_ut - earth).norm() < 0.05 && p.residual_rms_ut < 0.05,
+            "{:?} vs {earth:?}, residual {} µT",
+            p.earth_ned_ut,
+            p.residual_rms_ut
         );
     }
 

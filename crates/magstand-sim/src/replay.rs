@@ -123,7 +123,38 @@ pub fn replay(
     bat_v: Option<&[f64]>,
     command_lead: f64,
 ) -> Trace {
+    replay_logged(
+        scenario,
+        t_s,
+        thr,
+        Logged { bat_v, bat_a: None },
+        command_lead,
+    )
+}
+
+/// The supply columns a replay may follow instead of the supply model.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Logged<'a> {
+    /// Recorded supply voltage per row, V: the motors and the stand modules see it.
+    pub bat_v: Option<&'a [f64]>,
+    /// Recorded supply current per row, A: the stand modules (hysteresis, heating) see it and
+    /// [`Trace::total_a`] is it, where the nominal motors' currents are only a model of it (a
+    /// vehicle in flight). The motors' speeds still follow the commands.
+    pub bat_a: Option<&'a [f64]>,
+}
+
+/// [`replay`] following the recorded supply columns in `logged`.
+pub fn replay_logged(
+    scenario: &Scenario,
+    t_s: &[f64],
+    thr: &[Vec<f64>],
+    logged: Logged,
+    command_lead: f64,
+) -> Trace {
     let p = scenario;
+    let Logged { bat_v, bat_a } = logged;
+    // The current the stand modules see at a row: the recorded one where given.
+    let supply_a = |row: usize, model_a: f64| bat_a.map_or(model_a, |a| a[row]);
     let n_motors = p.motors.count;
     let rows = t_s.len();
     let command = |m: usize, r: usize| thr[if thr.len() == 1 { 0 } else { m }][r];
@@ -194,7 +225,7 @@ pub fn replay(
                 }
                 supply.step(total_a, h);
                 let electrical = Electrical {
-                    total_a,
+                    total_a: supply_a(r - 1, total_a),
                     voltage_v: voltage,
                 };
                 for part in stand_parts.iter_mut() {
@@ -207,7 +238,7 @@ pub fn replay(
             None => supply.voltage_v(&p.supply, total_a),
         };
         let electrical = Electrical {
-            total_a,
+            total_a: supply_a(r, total_a),
             voltage_v: voltage,
         };
         let mut extra = Vec3::zeros();
@@ -226,7 +257,7 @@ pub fn replay(
                 extra += g * st.current_a;
             }
         }
-        tr.total_a.push(total_a);
+        tr.total_a.push(electrical.total_a);
         tr.voltage_v.push(voltage);
         for ((_, col), part) in tr.modules.iter_mut().zip(&stand_parts) {
             col.push(part.state());
@@ -335,6 +366,42 @@ mod tests {
             );
             assert!((tr.voltage_v[r] - v[r]).abs() < 0.01, "row {r}");
         }
+    }
+
+    #[test]
+    fn a_logged_current_is_what_the_modules_see_and_the_motors_are_not() {
+        let (rec, tr) = stair_and_replay();
+        let s = Scenario::from_toml_str(STAIR, "t")
+            .unwrap()
+            .check("t", None)
+            .unwrap();
+        let p = s.params();
+        // A measured current unlike the model's: a third higher, with a 2 A ripple.
+        let measured: Vec<f64> = (0..rec.len())
+            .map(|r| 1.3 * tr.total_a[r] + 2.0 * (r as f64 * 0.37).sin())
+            .collect();
+        let logged = Logged {
+            bat_v: None,
+            bat_a: Some(&measured),
+        };
+        let followed = replay_logged(p, &rec.t_s, &rec.thr, logged, 0.0);
+        assert_eq!(followed.total_a, measured);
+        assert_eq!(followed.speed, tr.speed, "the motors follow the commands");
+        // The play operator runs on the measured current: never further from it than its
+        // half-width, which the model's current is (by the added third) at full throttle.
+        let play = followed.column(crate::hysteresis::PLAY_A).unwrap();
+        let width = p.hysteresis.play_a;
+        let far = |current: &[f64]| {
+            (0..rec.len())
+                .map(|r| (play[r] - current[r]).abs())
+                .fold(0.0, f64::max)
+        };
+        assert!(
+            far(&measured) <= width + 1e-9 && far(&tr.total_a) > width,
+            "play {} A from the measured current, {} A from the model's, half-width {width} A",
+            far(&measured),
+            far(&tr.total_a)
+        );
     }
 
     #[test]

@@ -1,6 +1,8 @@
 use magstand_sim::Scenario;
 
-use super::{Context, Effect};
+use magstand_sim::replay::Trace;
+
+use super::{Context, Effect, first_order_lag};
 use crate::optimize::Search;
 
 /// The slowest spin-up time constant a motor and propeller have, s. Electric multirotor
@@ -26,8 +28,9 @@ impl Effect for CurrentLag {
         "current_lag"
     }
     fn explanation(&self) -> &'static str {
-        "The rotors take time to spin up and down, so motor current, and the field it makes, \
-         follows each command step through a first-order lag."
+        "The field follows the current through a first-order lag: behind each command while \
+         the rotors spin up and down, or, on a flight with its current logged, behind the \
+         measured current (eddy currents in nearby metal, a filtered current sensor)."
     }
     fn parameters(&self) -> &'static [&'static str] {
         SpinUp::NAMES
@@ -42,8 +45,11 @@ impl Effect for CurrentLag {
             points: 15,
         }]
     }
-    fn stand_constant(&self, s: &Scenario) -> Option<(&'static str, f64)> {
-        Some(("motors.spinup_tau_s", s.motors.spinup_tau_s))
+    fn stand_constant(&self, ctx: &Context) -> Option<(&'static str, f64)> {
+        // Behind a measured current the spin-up is already in the measurement: a lag of the
+        // field behind it is physics of its own, not the stand's constant.
+        (!ctx.follow_recorded_current)
+            .then_some(("motors.spinup_tau_s", ctx.nominal.motors.spinup_tau_s))
     }
     fn beyond_calibration(&self, theta: &[f64]) -> Option<String> {
         let tau_s = SpinUp::from_slice(theta)?.spinup_tau_s;
@@ -56,9 +62,26 @@ impl Effect for CurrentLag {
             )
         })
     }
-    fn apply(&self, _ctx: &Context, s: &mut Scenario, theta: &[f64]) {
+    fn apply(&self, ctx: &Context, s: &mut Scenario, theta: &[f64]) {
+        if ctx.follow_recorded_current {
+            return;
+        }
         if let Some(p) = SpinUp::from_slice(theta) {
             s.motors.spinup_tau_s = p.spinup_tau_s;
         }
+    }
+    fn regressors(&self, ctx: &Context, trace: &Trace, theta: &[f64]) -> Vec<(String, Vec<f64>)> {
+        if !ctx.follow_recorded_current {
+            return Vec::new();
+        }
+        let Some(p) = SpinUp::from_slice(theta) else {
+            return Vec::new();
+        };
+        // The lag's departure from the measured current, from the first row's current on.
+        let first = trace.total_a.first().copied().unwrap_or(0.0);
+        let change: Vec<f64> = trace.total_a.iter().map(|a| a - first).collect();
+        let lagged = first_order_lag(&trace.t_s, &change, p.spinup_tau_s);
+        let behind = lagged.iter().zip(&change).map(|(l, c)| l - c).collect();
+        vec![("lag_behind_current_a".into(), behind)]
     }
 }

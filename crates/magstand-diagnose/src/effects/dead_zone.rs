@@ -35,8 +35,8 @@ impl Effect for DeadZone {
             points: 31,
         }]
     }
-    fn stand_constant(&self, s: &Scenario) -> Option<(&'static str, f64)> {
-        Some(("motors.dead_zone", s.motors.dead_zone))
+    fn stand_constant(&self, ctx: &Context) -> Option<(&'static str, f64)> {
+        Some(("motors.dead_zone", ctx.nominal.motors.dead_zone))
     }
     fn apply(&self, _ctx: &Context, s: &mut Scenario, theta: &[f64]) {
         if let Some(p) = Start::from_slice(theta) {

@@ -50,12 +50,20 @@ impl Effect for Hysteresis {
             s.hysteresis.play_a = p.play_a;
         }
     }
-    fn regressors(&self, _ctx: &Context, trace: &Trace, _theta: &[f64]) -> Vec<(String, Vec<f64>)> {
+    fn regressors(&self, ctx: &Context, trace: &Trace, _theta: &[f64]) -> Vec<(String, Vec<f64>)> {
         // The hysteresis module is always part of the stand; a trace without its column
         // (none is made) would regress on nothing.
-        let play = trace
+        let mut play = trace
             .column(magstand_sim::hysteresis::PLAY_A)
             .map_or_else(|| vec![0.0; trace.len()], <[f64]>::to_vec);
+        // A nominal current is a smooth function of the rotor speeds, which the baseline
+        // columns already follow; a measured one is not, so only the play's departure from it
+        // is the hysteresis.
+        if ctx.follow_recorded_current {
+            for (p, a) in play.iter_mut().zip(&trace.total_a) {
+                *p -= a;
+            }
+        }
         vec![("play_a".into(), play)]
     }
     fn switch_on(&self, _ctx: &Context, s: &mut Scenario, f: &EffectFit) -> Vec<Param> {

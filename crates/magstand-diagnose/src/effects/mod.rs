@@ -77,6 +77,11 @@ pub struct Context<'a> {
     /// start, as the physics model does; the diagnosis instead names the battery's sag as an
     /// effect when the data demand it.
     pub follow_recorded_voltage: bool,
+    /// Whether the replay's supply current is the recording's logged one (`bat_a`): on a
+    /// flight, where the vehicle's motors and battery are not the nominal stand's, the
+    /// measured current is the best account of the current the field follows, so the
+    /// current-driven modules (hysteresis, heating) and the current lag follow it.
+    pub follow_recorded_current: bool,
     /// Replays already made of this recording, reused by the searches.
     pub(crate) replays: crate::pipeline::design::ReplayCache,
 }
@@ -155,7 +160,7 @@ pub trait Effect: Sync + Send {
     /// rather than physics the nominal stand lacks. Where the scenario states the constant, such
     /// an effect is named only where the data reject the stated value: its fit must lie beyond
     /// 3 standard uncertainties of it.
-    fn stand_constant(&self, _s: &Scenario) -> Option<(&'static str, f64)> {
+    fn stand_constant(&self, _ctx: &Context) -> Option<(&'static str, f64)> {
         None
     }
 
@@ -282,12 +287,13 @@ mod tests {
             command_lead: 0.5,
             flight: false,
             follow_recorded_voltage: false,
+            follow_recorded_current: false,
             replays: Default::default(),
         };
         for e in catalog() {
             let searched: Vec<_> = e.search(&ctx).iter().map(|s| s.name).collect();
             assert_eq!(searched, e.parameters(), "effect {}", e.name());
-            if let Some((key, _)) = e.stand_constant(&nominal) {
+            if let Some((key, _)) = e.stand_constant(&ctx) {
                 assert_eq!(
                     [key.rsplit('.').next().unwrap()],
                     e.parameters(),

@@ -3,7 +3,7 @@
 //! simulation against the recording, and the diagnosis file and model files.
 use magstand_core::{Recording, Vec3};
 use magstand_sim::ValidScenario;
-use magstand_sim::replay::replay;
+use magstand_sim::replay::{Logged, replay_logged};
 
 use crate::augmented_model::{AugmentedModel, AugmentedTerm};
 use crate::diagnosis::{
@@ -122,7 +122,7 @@ fn separate_calibration(
     let mut findings = Vec::new();
     let mut calibrated = Vec::new();
     for (t, mut report) in terms.iter().zip(reports) {
-        let constant = t.effect.stand_constant(ctx.nominal);
+        let constant = t.effect.stand_constant(ctx);
         if super::forward::calibrates(t.effect, ctx, &t.theta) {
             let (key, _) = constant.expect("a calibration has a stand constant");
             calibrated.extend(report.params.into_iter().map(|p| Param {
@@ -176,6 +176,7 @@ fn model_file(
         method: None,
         choice: None,
         follow_recorded_voltage: ctx.follow_recorded_voltage,
+        follow_recorded_current: ctx.follow_recorded_current,
     }
 }
 
@@ -220,14 +221,18 @@ fn simulation_rmse(
     weights: &Weights,
 ) -> Result<[f64; 3], DiagnoseError> {
     let (rec, split) = (ctx.rec, ctx.split);
-    let tr = replay(
+    let logged = Logged {
+        bat_v: None,
+        bat_a: rec.bat_a.as_deref().filter(|_| ctx.follow_recorded_current),
+    };
+    let tr = replay_logged(
         augmented.params(),
         &rec.t_s,
         &rec.thr,
-        None,
+        logged,
         ctx.command_lead,
     );
-    let design = Design::baseline(&tr);
+    let design = Design::baseline(&tr, ctx.follow_recorded_current);
     let f = fit(
         &design,
         &rec.mag_ut,

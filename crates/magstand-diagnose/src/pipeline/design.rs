@@ -5,7 +5,7 @@ use std::sync::{Arc, Mutex};
 
 use magstand_core::Vec3;
 use magstand_sim::Scenario;
-use magstand_sim::replay::{Trace, replay};
+use magstand_sim::replay::{Logged, Trace, replay_logged};
 
 use crate::DiagnoseError;
 use crate::effects::{Context, Effect};
@@ -52,6 +52,7 @@ struct ReplayKey {
     scenario: Scenario,
     lead_bits: u64,
     recorded_voltage: bool,
+    recorded_current: bool,
 }
 
 /// Most replays a cache keeps.
@@ -74,13 +75,14 @@ impl ReplayCache {
         &self,
         scenario: &Scenario,
         lead: f64,
-        recorded_voltage: bool,
+        logged: Logged,
         make: impl FnOnce() -> Trace,
     ) -> Arc<Trace> {
         let key = ReplayKey {
             scenario: scenario.clone(),
             lead_bits: lead.to_bits(),
-            recorded_voltage,
+            recorded_voltage: logged.bat_v.is_some(),
+            recorded_current: logged.bat_a.is_some(),
         };
         // A poisoned lock only means another search panicked; the list itself stays valid.
         let lock = || self.0.lock().unwrap_or_else(|e| e.into_inner());
@@ -116,16 +118,19 @@ pub(crate) fn build_with_lead(ctx: &Context, terms: &[(&dyn Effect, &[f64])], le
         e.apply(ctx, &mut s, theta);
         recorded_v |= e.uses_recorded_voltage(ctx);
     }
-    let bat_v = if recorded_v {
-        ctx.rec.bat_v.as_deref()
-    } else {
-        None
+    let logged = Logged {
+        bat_v: ctx.rec.bat_v.as_deref().filter(|_| recorded_v),
+        bat_a: ctx
+            .rec
+            .bat_a
+            .as_deref()
+            .filter(|_| ctx.follow_recorded_current),
     };
     // The magnetometer's delay shifts a replay without changing it: replays are kept without
     // it and shifted here, so a search over the delay replays once.
     let delay_s = std::mem::take(&mut s.logging.mag_delay_s);
-    let undelayed = ctx.replays.get_or_make(&s, lead, bat_v.is_some(), || {
-        replay(&s, &ctx.rec.t_s, &ctx.rec.thr, bat_v, lead)
+    let undelayed = ctx.replays.get_or_make(&s, lead, logged, || {
+        replay_logged(&s, &ctx.rec.t_s, &ctx.rec.thr, logged, lead)
     });
     let delayed;
     let trace: &Trace = if delay_s > 0.0 {
@@ -136,7 +141,7 @@ pub(crate) fn build_with_lead(ctx: &Context, terms: &[(&dyn Effect, &[f64])], le
     } else {
         &undelayed
     };
-    let mut design = Design::baseline(trace);
+    let mut design = Design::baseline(trace, ctx.follow_recorded_current);
     let mut term_columns = Vec::new();
     for (e, theta) in terms {
         let start = design.len();

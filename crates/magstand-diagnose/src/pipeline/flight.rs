@@ -1,6 +1,6 @@
 //! Stage 0 for flight logs: a recording with attitude whose vehicle flew is diagnosed on a
 //! baseline that takes out the Earth field turned by the logged attitude, the sensor offset
-//! and the magnetometer's delay behind the commands. That is the flight preparation of
+//! and the magnetometer's delay behind the attitude and the commands. That is the flight preparation of
 //! `magstand fit --earth fit` ([`magstand_ident::flight::prepare_flight`]), used as it is; its
 //! stand-equivalent recording is then diagnosed like a stand's.
 //!
@@ -71,9 +71,15 @@ pub(crate) fn flight_baseline(
         Param::new("flight.earth_d_ut", e.z, None, "µT"),
         Param::new(
             "flight.mag_delay_s",
+            prep.attitude_delay_s,
+            None,
+            "s (the magnetometer's samples behind the attitude: their age at their time stamps)",
+        ),
+        Param::new(
+            "flight.command_delay_s",
             prep.delay_s,
             None,
-            "s (magnetometer behind the commands)",
+            "s (magnetometer behind the commands: the samples' age and the motors' lag)",
         ),
     ];
     Ok(Some(FlightBaseline {

@@ -130,7 +130,7 @@ const REJECT_STATED_SD: f64 = 3.0;
 /// untestable, with why. (A constant the scenario leaves out is tested by its held-out gain
 /// and, when accepted, reported as calibration: see [`calibrates`].)
 fn refuse_within_stated(c: &mut Candidate, effect: &dyn Effect, ctx: &Context) {
-    let Some((key, stated)) = effect.stand_constant(ctx.nominal) else {
+    let Some((key, stated)) = effect.stand_constant(ctx) else {
         return;
     };
     if !ctx.nominal.states(key) {
@@ -171,7 +171,7 @@ fn prediction_change(new: &[Vec3], old: &[Vec3], w: &Weights) -> Vec<Vec3> {
 /// spin-up).
 pub(crate) fn calibrates(effect: &dyn Effect, ctx: &Context, theta: &[f64]) -> bool {
     effect
-        .stand_constant(ctx.nominal)
+        .stand_constant(ctx)
         .is_some_and(|(key, _)| !ctx.nominal.states(key))
         && effect.beyond_calibration(theta).is_none()
 }

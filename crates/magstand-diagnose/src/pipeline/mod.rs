@@ -16,7 +16,7 @@
 //! recording is diagnosed. [`diagnose`] then checks the recording against the nominal stand,
 //! calibrates the baseline and runs the stages in order.
 use magstand_core::Recording;
-use magstand_sim::replay::{Trace, replay};
+use magstand_sim::replay::{Logged, Trace, replay_logged};
 use magstand_sim::{Scenario, ValidScenario};
 
 use crate::diagnosis::Diagnosis;
@@ -72,7 +72,11 @@ pub(crate) fn diagnose_with(
         }
         _ => nominal,
     };
-    let (scenario, split, nominal_trace) = prepare(rec, origin, nominal, cfg)?;
+    // In flight the vehicle's motors and battery are not the nominal stand's: where the
+    // current is logged, the current-driven physics follows it.
+    let follow_recorded_current = flight.is_some() && rec.bat_a.is_some();
+    let (scenario, split, nominal_trace) =
+        prepare(rec, origin, nominal, cfg, follow_recorded_current)?;
     let mut ctx = Context {
         rec,
         nominal: &scenario,
@@ -82,6 +86,7 @@ pub(crate) fn diagnose_with(
         command_lead: 0.5,
         flight: flight.is_some(),
         follow_recorded_voltage: follow_recorded_voltage && rec.bat_v.is_some(),
+        follow_recorded_current,
         replays: Default::default(),
     };
     let base = calibrate_baseline(&mut ctx, cfg)?;
@@ -112,6 +117,7 @@ fn prepare(
     origin: &str,
     nominal: &ValidScenario,
     cfg: &DiagnoseConfig,
+    follow_recorded_current: bool,
 ) -> Result<(Scenario, Split, Trace), DiagnoseError> {
     let bad = |message: String| DiagnoseError::Recording {
         origin: origin.into(),
@@ -153,7 +159,11 @@ fn prepare(
     let mut scenario = nominal.params().clone();
     // The program is the recording's; the nominal stand's own logging delay is physics.
     scenario.study = Default::default();
-    let nominal_trace = replay(&scenario, &rec.t_s, &rec.thr, None, 0.5);
+    let logged = Logged {
+        bat_v: None,
+        bat_a: rec.bat_a.as_deref().filter(|_| follow_recorded_current),
+    };
+    let nominal_trace = replay_logged(&scenario, &rec.t_s, &rec.thr, logged, 0.5);
     let avionics = scenario.supply.avionics_current_a();
     let max_motor_a = nominal_trace
         .total_a
