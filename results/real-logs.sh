@@ -57,7 +57,7 @@ echo "internal compass are fitted on the same rows: magstand's automatic model, 
 echo "ArduPilot's compassmot line. The numbers are RMS errors in uT on the time blocks the fits held"
 echo "out (every third block), per axis x / y / z; lower is better."
 echo
-echo "| log | rows | input | Earth field fitted (N, E, D uT) | delay s | magstand | PX4 line | ArduPilot line |"
+echo "| log | rows | input | Earth field fitted (N, E, D uT) | delay s (attitude, input) | magstand | PX4 line | ArduPilot line |"
 echo "|---|---|---|---|---|---|---|---|"
 } > "$out"
 fit() { # log csv input method -> "x / y / z" held-out RMSE, plus the Earth line
@@ -83,7 +83,7 @@ row() { # name file kind input [import args...]
       fi
       cells+=("$(awk '/^ +[xyz] /{printf "%s%.2f", (n++ ? " / " : ""), $4}' "$T/fit.txt")")
       earth=$(sed -n 's/.*: N \([-0-9.]*\) E \([-0-9.]*\) D \([-0-9.]*\) uT.*/\1, \2, \3/p' "$T/fit.txt")
-      delay=$(sed -n 's/.*magnetometer \([0-9.]*\) s behind.*/\1/p' "$T/fit.txt")
+      delay=$(sed -n 's/.*magnetometer samples \([0-9.]*\) s behind the attitude and \([0-9.]*\) s behind.*/\1, \2/p' "$T/fit.txt")
     else
       cells+=("fit failed: $(tail -1 "$T/fit.txt" | sed "s#$T/##g; s#^error: ##" | cut -c1-110)")
     fi
@@ -126,18 +126,20 @@ What the tables say:
   at the first, with 23). The corrupt fixture has a message of the wrong size, and what
   precedes it has no motor outputs: the import says so.
 - The ArduPilot log (10 Hz compass, 155 s of flight with turns up to 46 degrees of tilt and the
-  whole compass rose) is the one with enough data. Its fitted Earth field, 56.6 uT at -65.7
+  whole compass rose) is the one with enough data. Its fitted Earth field, 57.2 uT at -65.6
   degrees inclination, matches the reference field for Canberra in 2015 (IGRF-13: about 57 uT,
-  -66 degrees), though nothing told the fit where the vehicle was. On held-out time blocks
-  magstand's model is better than both lines on x and y (y: 1.23 against 1.88 and 1.78 uT with
-  the throttle as input) and equal on z. The external compass, the control, has almost nothing
+  -66 degrees), though nothing told the fit where the vehicle was. Its magnetometer samples are
+  0.054 s old at their stamps (turning the Earth field by the attitude of that moment took
+  0.2 to 0.3 uT off every held-out figure, for every model, on 2026-11-26). On held-out time
+  blocks magstand's model is better than both lines on y (0.98 against 1.80 and 1.73 uT with
+  the throttle as input) and equal on x and z. The external compass, the control, has almost nothing
   for either to explain.
 - The PX4 logs record the magnetometer at 1 to 3 Hz for 18 to 95 s. The octo and V6XRT logs run
   from take-off, with no row where every motor is off; the flight fit's own estimate of the
   sensor offset stands in for the motors-off reading, because their input comes down near zero
   (0.3-0.6 A, throttle 0.002). The UAVCAN log never goes below 27 A, so the offset would be an
   extrapolation, and the fit refuses. On those three flights magstand's model is better than
-  PX4's line on held-out blocks on x (5.55 against 6.01, 5.95 against 6.42, 0.89 against 0.98
+  PX4's line on held-out blocks on x (5.55 against 6.01, 5.95 against 6.42, 0.84 against 1.08
   uT) and within the noise on y and z; with 1 Hz rows and 90 degrees of heading or less the
   fitted Earth fields are uncertain, and `magstand fit` says so and suggests `--earth` with the World Magnetic Model.
 - compassmot's figures are withheld on every PX4 log and on the ArduPilot current fits:
