@@ -343,6 +343,8 @@ pub struct Outcome {
     pub log: &'static str,
     /// The injection's label, or "(as logged)".
     pub injection: String,
+    /// The catalog name of the injected effect (None for the log as logged).
+    pub injected: Option<&'static str>,
     /// Verdict, or the error.
     pub verdict: Result<Vec<String>, String>,
     /// For a copy: told apart from the original as required, and why.
@@ -364,6 +366,7 @@ pub fn run_log(log: &RealLog, injections: &[Injection]) -> Vec<Outcome> {
             return vec![Outcome {
                 log: log.label,
                 injection: "(as logged)".into(),
+                injected: None,
                 verdict: Err(format!("import: {e}")),
                 judged: None,
                 seconds: 0.0,
@@ -374,6 +377,7 @@ pub fn run_log(log: &RealLog, injections: &[Injection]) -> Vec<Outcome> {
     let mut out = vec![Outcome {
         log: log.label,
         injection: "(as logged)".into(),
+        injected: None,
         verdict: original
             .as_ref()
             .map(|d| d.verdict.clone())
@@ -390,6 +394,7 @@ pub fn run_log(log: &RealLog, injections: &[Injection]) -> Vec<Outcome> {
         out.push(Outcome {
             log: log.label,
             injection: inj.label(),
+            injected: Some(inj.name()),
             judged: d
                 .as_ref()
                 .ok()
@@ -428,5 +433,59 @@ pub fn markdown(outcomes: &[Outcome]) -> String {
             o.log, o.injection, o.seconds
         );
     }
-    s
+    s + &confusion(outcomes)
+}
+
+/// Per injected effect, how often each name was added to the unaltered log's verdict, and
+/// how often one of its names was lost; false alarms are the added names that were not
+/// injected and the lost ones.
+fn confusion(outcomes: &[Outcome]) -> String {
+    let names = magstand_diagnose::effects::names();
+    let mut rows: Vec<(&str, usize, Vec<usize>, usize)> = Vec::new();
+    let mut false_alarms = 0;
+    let mut original: Option<BTreeSet<String>> = None;
+    for o in outcomes {
+        let Some(injected) = o.injected else {
+            original = o.verdict.as_ref().ok().map(|v| v.iter().cloned().collect());
+            continue;
+        };
+        let (Some(before), Ok(after)) = (&original, &o.verdict) else {
+            continue;
+        };
+        let after: BTreeSet<String> = after.iter().cloned().collect();
+        let k = match rows.iter().position(|r| r.0 == injected) {
+            Some(k) => k,
+            None => {
+                rows.push((injected, 0, vec![0; names.len() + 1], 0));
+                rows.len() - 1
+            }
+        };
+        let row = &mut rows[k];
+        row.1 += 1;
+        for added in after.difference(before) {
+            let column = names.iter().position(|n| n == added).unwrap_or(names.len());
+            row.2[column] += 1;
+            if added != injected {
+                false_alarms += 1;
+            }
+        }
+        let lost = before.difference(&after).count();
+        row.3 += lost;
+        false_alarms += lost;
+    }
+    let mut s = format!(
+        "\nConfusion: rows are the effects injected, columns the names added to the unaltered log's verdict (a late magnetometer on a flight is told apart by its calibrated delay, not by a name).\n\n| injected | copies | {} | unexplained | names lost |\n|---|---|{}---|---|\n",
+        names.join(" | "),
+        "---|".repeat(names.len())
+    );
+    for (injected, copies, added, lost) in &rows {
+        let cells: Vec<String> = added.iter().map(usize::to_string).collect();
+        s += &format!(
+            "| {injected} | {copies} | {} | {lost} |\n",
+            cells.join(" | ")
+        );
+    }
+    s + &format!(
+        "\nFalse alarms (names added that were not injected, and names lost): {false_alarms}.\n"
+    )
 }
