@@ -15,7 +15,8 @@
 //!
 //! [`choose_model`] fits each family on the recording without its held-out time blocks (the
 //! identification split: every fifth block of 1/50 of the recording, at most 1 s) and keeps
-//! one by the rule of [`magstand_ident::family_choice`]:
+//! one by the rule of [`magstand_ident::family_choice`]; only the family kept is then fitted
+//! on every row (a local linear family's parameters in the table are its training fit's):
 //!
 //! | family | tried when |
 //! |---|---|
@@ -119,11 +120,13 @@ pub fn choose_model(
     nominal: &ValidScenario,
     fallback_reference_ut: Option<Vec3>,
 ) -> Result<(DisturbanceModel, FamilyChoice), DiagnoseError> {
-    let local = |input: InputKind| -> Result<(Model, Vec<Vec3>, Vec<bool>), DiagnoseError> {
+    // Each local family's training fit only: the held-out residuals judge it, and only the
+    // family chosen is then fitted on every row.
+    let local = |input: InputKind| -> Result<LocalFamily, DiagnoseError> {
         let cfg: ValidFitConfig = FitConfig::automatic().with_input(input).check()?;
         let data = Dataset::from_recording_or(rec, input, origin, fallback_reference_ut)?;
-        let (model, held) = cfg.fit_holding_out(&data)?;
-        Ok((model, held.residuals_ut, held.mask))
+        let held = cfg.held_out(&data)?;
+        Ok(LocalFamily { cfg, data, held })
     };
     let physics = || -> Result<PhysicsFit, String> {
         if magstand_ident::flight::is_flight(rec) {
@@ -178,7 +181,7 @@ pub fn choose_model(
     let throttle = throttle?;
     // The split every family is judged on: the identification fit's held-out rows, which the
     // physics fit held out too (one split, `magstand_core::held_out`, same blocks).
-    let mask = &throttle.2;
+    let mask = &throttle.held.mask;
     let blocks = magstand_ident::time_blocks_of(&rec.t_s);
     let physics_residuals = physics.as_ref().map_err(Clone::clone).and_then(|p| {
         let reading = p
@@ -192,12 +195,13 @@ pub fn choose_model(
             .map(|(m, r)| m - r)
             .collect::<Vec<Vec3>>())
     });
-    let contender =
-        |family: FamilyId, fit: Result<&(Model, Vec<Vec3>, Vec<bool>), &String>| Contender {
-            family,
-            parameters: fit.map_or(0, |f| f.0.parameter_count()),
-            residuals_ut: fit.map(|f| f.1.clone()).map_err(Clone::clone),
-        };
+    let contender = |family: FamilyId, fit: Result<&LocalFamily, &String>| Contender {
+        family,
+        parameters: fit.map_or(0, |f| f.held.parameters),
+        residuals_ut: fit
+            .map(|f| f.held.residuals_ut.clone())
+            .map_err(Clone::clone),
+    };
     let contenders = vec![
         contender(FamilyId::Throttle, Ok(&throttle)),
         contender(FamilyId::Current, current.as_ref()),
@@ -212,9 +216,10 @@ pub fn choose_model(
         origin: origin.into(),
         message: "no model family could be judged on the held-out rows".into(),
     })?;
-    let with_choice = |mut m: Model| {
+    let with_choice = |family: LocalFamily| -> Result<DisturbanceModel, DiagnoseError> {
+        let mut m = family.cfg.fit_judged(&family.data, &family.held)?;
         m.choice = Some(choice.clone());
-        DisturbanceModel::LocalLinear(Box::new(m))
+        Ok(DisturbanceModel::LocalLinear(Box::new(m)))
     };
     let chosen = match choice.chosen {
         FamilyId::Physics => {
@@ -227,11 +232,18 @@ pub fn choose_model(
             m.choice = Some(choice.clone());
             DisturbanceModel::Physics(Box::new(m))
         }
-        FamilyId::Current => with_choice(current.map_err(unreachable_err(origin))?.0),
-        FamilyId::Motors => with_choice(motors.map_err(unreachable_err(origin))?.0),
-        _ => with_choice(throttle.0),
+        FamilyId::Current => with_choice(current.map_err(unreachable_err(origin))?)?,
+        FamilyId::Motors => with_choice(motors.map_err(unreachable_err(origin))?)?,
+        _ => with_choice(throttle)?,
     };
     Ok((chosen, choice))
+}
+
+/// A local linear family's training fit, with what its fit on every row needs.
+struct LocalFamily {
+    cfg: ValidFitConfig,
+    data: Dataset,
+    held: magstand_ident::HeldOut,
 }
 
 /// A chosen family's fit failing: cannot happen (only scored families are chosen), but is an

@@ -456,6 +456,8 @@ pub struct HeldOut {
     /// Residual of the training fit (fitted without the held-out rows) at every row, µT; only
     /// the held-out rows' are out of sample.
     pub residuals_ut: Vec<Vec3>,
+    /// Parameters of the training fit: the model those residuals judge.
+    pub parameters: usize,
 }
 
 impl Fit for ValidFitConfig {
@@ -470,10 +472,18 @@ impl ValidFitConfig {
     /// Fits, and returns with the model the training fit's residuals that gave its held-out
     /// RMSE (at no extra cost: the fit makes them anyway).
     pub fn fit_holding_out(&self, data: &Dataset) -> Result<(Model, HeldOut), IdentError> {
+        let held = self.held_out(data)?;
+        let model = self.fit_judged(data, &held)?;
+        Ok((model, held))
+    }
+
+    /// The first half of [`fit_holding_out`](Self::fit_holding_out): the training fit without
+    /// the held-out time blocks, and its residuals at every row (the evidence a choice among
+    /// families rests on; only the family chosen then needs
+    /// [`fit_judged`](Self::fit_judged)).
+    pub fn held_out(&self, data: &Dataset) -> Result<HeldOut, IdentError> {
         let holdout = data.holdout_mask();
-        // Structure selection scores on its own blocks, never on the held-out ones.
-        let blocks = data.time_blocks();
-        let select = |k: usize| blocks[k] % HOLDOUT_EVERY as u64 == STRUCTURE_SCORE_BLOCK as u64;
+        let select = self.structure_score_rows(data);
         let train = |k: usize| !holdout[k];
         let (s_train, _, _) = self.fit_rows(data, &train, &select, false)?;
         let mut train_model = Model::new("", data.spec.clone(), data.reference_ut, s_train, None);
@@ -485,7 +495,25 @@ impl ValidFitConfig {
             .collect();
         train_model.identified =
             IdentifiedRange::of(&train_u, data.spec.normalize(data.spec.off_raw));
-        let r_train = train_model.residuals(data);
+        let residuals_ut = train_model.residuals(data);
+        Ok(HeldOut {
+            mask: holdout,
+            residuals_ut,
+            parameters: train_model.parameter_count(),
+        })
+    }
+
+    /// Rows that score a structure search: their own blocks, never the held-out ones.
+    fn structure_score_rows(&self, data: &Dataset) -> impl Fn(usize) -> bool + Sync {
+        let blocks = data.time_blocks();
+        move |k: usize| blocks[k] % HOLDOUT_EVERY as u64 == STRUCTURE_SCORE_BLOCK as u64
+    }
+
+    /// The second half of [`fit_holding_out`](Self::fit_holding_out): the fit on every row,
+    /// with its summary's held-out RMSE from `held`, the training fit of the same data.
+    pub fn fit_judged(&self, data: &Dataset, held: &HeldOut) -> Result<Model, IdentError> {
+        let (holdout, r_train) = (&held.mask, &held.residuals_ut);
+        let select = self.structure_score_rows(data);
         let (structure, sd, residuals) = self.fit_rows(data, &|_| true, &select, true)?;
         let mut model = Model::new(
             &self.method_name(),
@@ -507,7 +535,7 @@ impl ValidFitConfig {
         let holdout_rmse_ut = rms(
             &mut r_train
                 .iter()
-                .zip(&holdout)
+                .zip(holdout)
                 .filter(|(_, h)| **h)
                 .map(|(v, _)| *v),
             holdout_rows,
@@ -537,13 +565,7 @@ impl ValidFitConfig {
             holdout_rmse_ut,
             terms,
         });
-        Ok((
-            model,
-            HeldOut {
-                mask: holdout,
-                residuals_ut: r_train,
-            },
-        ))
+        Ok(model)
     }
 }
 
