@@ -356,21 +356,18 @@ pub fn prepare_flight(
     // The sample's age moves the attitude and the inputs together; the disturbance may lag
     // the commands further. Each delay is searched with the other held, from the two moved
     // together, until neither moves by more than a tenth of the grid step.
-    let at_delays = |attitude: f64, command: f64| {
-        let to_body = to_body_at(&rec.t_s, att, attitude);
-        rms(stacked(
-            rec,
-            &to_body,
-            &delayed(&rec.t_s, &u, command),
-            cfg.earth,
-            origin,
-        ))
+    let fit_at = |to_body: &[Matrix3<f64>], input: &[f64]| {
+        rms(stacked(rec, to_body, input, cfg.earth, origin))
     };
-    let mut attitude_delay_s = search(&|d| at_delays(d, d));
+    let mut attitude_delay_s =
+        search(&|d| fit_at(&to_body_at(&rec.t_s, att, d), &delayed(&rec.t_s, &u, d)));
     let mut delay_s = attitude_delay_s;
     for _ in 0..3 {
-        let command = search(&|d| at_delays(attitude_delay_s, d));
-        let attitude = search(&|d| at_delays(d, command));
+        // The held stream is turned or moved once per search, not at every delay tried.
+        let held = to_body_at(&rec.t_s, att, attitude_delay_s);
+        let command = search(&|d| fit_at(&held, &delayed(&rec.t_s, &u, d)));
+        let input = delayed(&rec.t_s, &u, command);
+        let attitude = search(&|d| fit_at(&to_body_at(&rec.t_s, att, d), &input));
         let moved = (command - delay_s)
             .abs()
             .max((attitude - attitude_delay_s).abs());
