@@ -503,16 +503,11 @@ impl ValidFitConfig {
         })
     }
 
-    /// Rows that score a structure search: their own blocks, never the held-out ones.
-    fn structure_score_rows(&self, data: &Dataset) -> impl Fn(usize) -> bool + Sync {
-        let blocks = data.time_blocks();
-        move |k: usize| blocks[k] % HOLDOUT_EVERY as u64 == STRUCTURE_SCORE_BLOCK as u64
-    }
-
-    /// The second half of [`fit_holding_out`](Self::fit_holding_out): the fit on every row,
-    /// with its summary's held-out RMSE from `held`, the training fit of the same data.
-    pub fn fit_judged(&self, data: &Dataset, held: &HeldOut) -> Result<Model, IdentError> {
-        let (holdout, r_train) = (&held.mask, &held.residuals_ut);
+    /// The model fitted on every row, without a summary, and its residuals: what
+    /// [`fit_judged`](Self::fit_judged) summarizes, for a caller that judges the model by
+    /// other means (a Monte Carlo study, against the simulator's truth) and needs no training
+    /// fit.
+    pub fn fit_every_row(&self, data: &Dataset) -> Result<(Model, Vec<Vec3>), IdentError> {
         let select = self.structure_score_rows(data);
         let (structure, sd, residuals) = self.fit_rows(data, &|_| true, &select, true)?;
         let mut model = Model::new(
@@ -526,6 +521,20 @@ impl ValidFitConfig {
         // with it the continuation beyond) is set afterwards, and changes nothing inside it.
         let r = residuals.unwrap_or_else(|| model.residuals(data));
         model.identified = IdentifiedRange::of(&data.u, data.spec.normalize(data.spec.off_raw));
+        Ok((model, r))
+    }
+
+    /// Rows that score a structure search: their own blocks, never the held-out ones.
+    fn structure_score_rows(&self, data: &Dataset) -> impl Fn(usize) -> bool + Sync {
+        let blocks = data.time_blocks();
+        move |k: usize| blocks[k] % HOLDOUT_EVERY as u64 == STRUCTURE_SCORE_BLOCK as u64
+    }
+
+    /// The second half of [`fit_holding_out`](Self::fit_holding_out): the fit on every row,
+    /// with its summary's held-out RMSE from `held`, the training fit of the same data.
+    pub fn fit_judged(&self, data: &Dataset, held: &HeldOut) -> Result<Model, IdentError> {
+        let (holdout, r_train) = (&held.mask, &held.residuals_ut);
+        let (mut model, r) = self.fit_every_row(data)?;
         let holdout_rows = holdout.iter().filter(|h| **h).count();
         let rms = |rows: &mut dyn Iterator<Item = Vec3>, n: usize| -> [f64; 3] {
             let s = rows.fold(Vec3::zeros(), |acc, v| acc + v.component_mul(&v));
