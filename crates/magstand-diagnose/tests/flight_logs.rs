@@ -165,4 +165,17 @@ fn a_field_lagging_the_logged_current_of_a_flight_is_named() {
         "lag {tau:?} s (true {tau_s}): {:?}",
         d.effects[0].params
     );
+    // Its model follows the measured current, so a recording without one is refused by name.
+    let model = d.model.as_ref().expect("a diagnosis writes its model");
+    assert!(model.follow_recorded_current);
+    let mut without = rec.clone();
+    without.bat_a = None;
+    let err = model
+        .dist_column(&without, "no-current.csv")
+        .expect_err("a model on the measured current compensated a recording without it")
+        .to_string();
+    assert!(
+        err.contains("no-current.csv") && err.contains("bat_a"),
+        "{err}"
+    );
 }
