@@ -104,21 +104,41 @@ pub fn fit(
             .filter(|&k| use_row(k))
             .map(|k| (data.u[k], data.regressors(k), data.y[k], weight(k)))
     };
+    fit_weighted_rows(
+        data,
+        partition,
+        estimation,
+        data.len(),
+        FIT_CHUNK_ROWS,
+        rows_of,
+    )
+}
+
+/// Fits the network on `n` weighted rows `(u, regressors, y, weight per axis)`, which
+/// `rows_of` gives for a range of their indices. A row may stand for several of equal input
+/// and regressors: its weight is then their weights' sum and its `y` their weighted mean,
+/// which gives the same normal equations.
+///
+/// Chunks of `chunk` rows are accumulated on every core and summed in row order: the chunks
+/// are fixed by `n` and `chunk` alone, so the coefficients do not depend on the number of
+/// threads (and `n` up to `chunk` is one sequential pass; none is one empty chunk, and the
+/// solve says there is no data).
+pub(crate) fn fit_weighted_rows<'r, I>(
+    data: &Dataset,
+    partition: &RbfPartition,
+    estimation: Estimation,
+    n: usize,
+    chunk: usize,
+    rows_of: impl Fn(std::ops::Range<usize>) -> I + Sync,
+) -> Result<LocalLinearNet, IdentError>
+where
+    I: Iterator<Item = (f64, &'r [f64], Vec3, Vec3)>,
+{
     let p = data.spec.regressor_count();
-    // Chunks accumulated on every core, summed in row order: one chunk for a recording of
-    // up to FIT_CHUNK_ROWS rows (and one, empty, for none: the solve says there is no data).
-    let n = data.len();
-    let starts: Vec<usize> = (0..n.max(1)).step_by(FIT_CHUNK_ROWS).collect();
+    let starts: Vec<usize> = (0..n.max(1)).step_by(chunk.max(1)).collect();
     let total = starts
         .par_iter()
-        .map(|&a| {
-            accumulate(
-                p,
-                partition,
-                estimation,
-                rows_of(a..(a + FIT_CHUNK_ROWS).min(n)),
-            )
-        })
+        .map(|&a| accumulate(p, partition, estimation, rows_of(a..(a + chunk).min(n))))
         .collect::<Vec<Accumulated>>()
         .into_iter()
         .reduce(|mut sum, part| {
@@ -127,19 +147,6 @@ pub fn fit(
         })
         .expect("at least one chunk");
     solve(data, partition, total)
-}
-
-/// Fits the network on weighted rows `(u, regressors, y, weight per axis)`. A row may stand
-/// for several of equal input and regressors: its weight is then their weights' sum and its
-/// `y` their weighted mean, which gives the same normal equations.
-pub(crate) fn fit_weighted_rows<'r>(
-    data: &Dataset,
-    partition: &RbfPartition,
-    estimation: Estimation,
-    rows: impl Iterator<Item = (f64, &'r [f64], Vec3, Vec3)>,
-) -> Result<LocalLinearNet, IdentError> {
-    let p = data.spec.regressor_count();
-    solve(data, partition, accumulate(p, partition, estimation, rows))
 }
 
 /// The normal equations of a network's fit, before the solve.

@@ -69,6 +69,12 @@ impl GroupIndex {
 /// Rows looked at to tell whether a dataset's inputs repeat.
 const PROBE_ROWS: usize = 1024;
 
+/// Groups one worker accumulates at a time in [`Groups::fit`]: a structure search fits tens of
+/// thousands of distinct rows once per candidate partition, in sequence, so its fits are
+/// what can use the second core. Fixed, so the coefficients do not depend on the thread count;
+/// a recording of up to this many distinct rows is one sequential pass, as before.
+const GROUPS_PER_CHUNK: usize = 8192;
+
 /// Whether the rows of `data` repeat their inputs enough for grouping to pay: at most one in
 /// eight of [`PROBE_ROWS`] rows spread over the dataset has an input of its own. (A stair of a
 /// few dozen levels has a few dozen; a flight's or a current's input is new at every row,
@@ -192,7 +198,11 @@ impl<'d> Groups<'d> {
             self.data,
             partition,
             estimation,
-            (0..self.len()).map(|i| (self.u[i], self.regressors(i), self.y_w[i], self.w[i])),
+            self.len(),
+            GROUPS_PER_CHUNK,
+            |range: std::ops::Range<usize>| {
+                range.map(|i| (self.u[i], self.regressors(i), self.y_w[i], self.w[i]))
+            },
         )
     }
 
@@ -302,14 +312,10 @@ mod tests {
             let grouped = Groups::of(&d, &rows, &weight)
                 .fit(&partition, estimation)
                 .unwrap();
-            let by_row = fit_weighted_rows(
-                &d,
-                &partition,
-                estimation,
-                (0..d.len())
-                    .filter(|&k| rows(k))
-                    .map(|k| (d.u[k], d.regressors(k), d.y[k], weight(k))),
-            )
+            let by_row = fit_weighted_rows(&d, &partition, estimation, d.len(), d.len(), |r| {
+                r.filter(|&k| rows(k))
+                    .map(|k| (d.u[k], d.regressors(k), d.y[k], weight(k)))
+            })
             .unwrap();
             for a in 0..3 {
                 for (g, r) in grouped.coefficients[a].iter().zip(&by_row.coefficients[a]) {

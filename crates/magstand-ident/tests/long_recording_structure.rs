@@ -147,3 +147,40 @@ fn a_long_fit_on_every_row_does_not_depend_on_the_thread_count() {
         assert!(worst < 1.0, "{estimation:?}: worst error {worst} µT");
     }
 }
+
+/// The structure search fits its candidate partitions on the distinct rows in chunks on every
+/// core: with more distinct rows than a chunk holds, the automatic model must not depend on
+/// the number of threads either.
+#[test]
+fn an_automatic_structure_does_not_depend_on_the_thread_count() {
+    let n = 20_000;
+    let mut rec = recording(n);
+    rec.thr[0] = (0..n)
+        .map(|r| match r < n - 1000 {
+            true => 0.5 + 0.45 * (r as f64 * 7e-4).sin() + 1e-3 * (r as f64 * 0.77).sin(),
+            false => 0.0,
+        })
+        .collect();
+    for r in 0..n {
+        let u = rec.thr[0][r];
+        let noise = rec.mag_ut[r] - Vec3::new(20.0, 1.0, 45.0) - truth(0.0);
+        rec.mag_ut[r] = Vec3::new(20.0, 1.0, 45.0) + truth(u) + noise;
+    }
+    let data = Dataset::from_recording(&rec, InputKind::Throttle, "sweep").unwrap();
+    // Distinct rows, more than the structure search's chunk of 8,192.
+    assert!(data.group_index().is_none(), "the input must not repeat");
+    let config = FitConfig::automatic().check().unwrap();
+    let on = |threads: usize| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(|| config.fit(&data).unwrap())
+    };
+    let (one, two) = (on(1), on(2));
+    assert_eq!(
+        serde_json::to_string(&one.structure).unwrap(),
+        serde_json::to_string(&two.structure).unwrap(),
+        "the automatic structure differs between 1 and 2 threads"
+    );
+}
