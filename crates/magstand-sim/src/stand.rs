@@ -219,7 +219,9 @@ impl StandWorld {
                 world.integration_parameters.num_solver_iterations = 1;
                 world.integration_parameters.max_ccd_substeps = 0;
                 // Nothing to stabilize either (the recordings are byte-identical with it).
-                world.integration_parameters.num_internal_stabilization_iterations = 0;
+                world
+                    .integration_parameters
+                    .num_internal_stabilization_iterations = 0;
                 world
             });
             let w = std::f64::consts::TAU * p.mount_frequency_hz;
