@@ -69,9 +69,10 @@ impl GroupIndex {
 /// Rows looked at to tell whether a dataset's inputs repeat.
 const PROBE_ROWS: usize = 1024;
 
-/// Groups one worker accumulates at a time in [`Groups::fit`]: a structure search fits tens of
-/// thousands of distinct rows once per candidate partition, in sequence, so its fits are
-/// what can use the second core. Fixed, so the coefficients do not depend on the thread count;
+/// Groups one worker accumulates at a time in [`Groups::fit`] and
+/// [`Groups::binned_residuals`]: a structure search fits and scores tens of thousands of
+/// distinct rows once per candidate partition, in sequence, so those passes are what can use
+/// the second core. Fixed, so the coefficients do not depend on the thread count;
 /// a recording of up to this many distinct rows is one sequential pass, as before.
 const GROUPS_PER_CHUNK: usize = 8192;
 
@@ -215,13 +216,37 @@ impl<'d> Groups<'d> {
         hi: f64,
         phi: &mut [f64],
     ) -> Vec<(Vec3, usize)> {
-        let mut out = vec![(Vec3::zeros(), 0usize); bins];
         let width = (hi - lo).max(1e-12);
-        for i in 0..self.len() {
-            let u = self.u[i];
-            let b = (((u - lo) / width * bins as f64) as usize).min(bins - 1);
-            out[b].0 += self.y_sum[i] - net.eval(u, self.regressors(i), phi) * self.n[i] as f64;
-            out[b].1 += self.n[i];
+        let chunk_sums = |range: std::ops::Range<usize>, phi: &mut [f64]| {
+            let mut out = vec![(Vec3::zeros(), 0usize); bins];
+            for i in range {
+                let u = self.u[i];
+                let b = (((u - lo) / width * bins as f64) as usize).min(bins - 1);
+                out[b].0 += self.y_sum[i] - net.eval(u, self.regressors(i), phi) * self.n[i] as f64;
+                out[b].1 += self.n[i];
+            }
+            out
+        };
+        let n = self.len();
+        if n <= GROUPS_PER_CHUNK {
+            return chunk_sums(0..n, phi);
+        }
+        // Chunks fixed by the group count, summed in order: the same sums at any thread count.
+        use rayon::prelude::*;
+        let starts: Vec<usize> = (0..n).step_by(GROUPS_PER_CHUNK).collect();
+        let parts: Vec<Vec<(Vec3, usize)>> = starts
+            .par_iter()
+            .map(|&a| {
+                let mut phi = vec![0.0; phi.len()];
+                chunk_sums(a..(a + GROUPS_PER_CHUNK).min(n), &mut phi)
+            })
+            .collect();
+        let mut out = vec![(Vec3::zeros(), 0usize); bins];
+        for part in parts {
+            for (o, p) in out.iter_mut().zip(part) {
+                o.0 += p.0;
+                o.1 += p.1;
+            }
         }
         out
     }
