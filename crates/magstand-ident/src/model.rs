@@ -171,6 +171,10 @@ pub struct Scratch {
     phi: Vec<f64>,
 }
 
+/// Fewest rows a task of [`Model::residuals_at`] evaluates: enough that handing out the work
+/// costs little beside the rows.
+const RESIDUAL_ROWS_PER_TASK: usize = 4096;
+
 /// The one spelling of a model file's `method`: files written before the names were unified
 /// spelled weighting with `+` and the automatic structure `auto-...`
 /// (`global+weighted`, `auto-global+weighted`); they read as `global-weighted` and
@@ -300,17 +304,27 @@ impl Model {
     }
 
     /// As [`Model::residuals`] on the rows `rows` selects only; the others are left zero.
-    pub fn residuals_at(&self, data: &crate::Dataset, rows: &dyn Fn(usize) -> bool) -> Vec<Vec3> {
-        let mut s = self.scratch();
-        let off = self.off_output(&mut s);
+    /// The rows are evaluated on every core, each exactly as alone.
+    pub fn residuals_at(
+        &self,
+        data: &crate::Dataset,
+        rows: &(dyn Fn(usize) -> bool + Sync),
+    ) -> Vec<Vec3> {
+        use rayon::prelude::*;
+        let off = self.off_output(&mut self.scratch());
         (0..data.len())
-            .map(|k| {
-                if rows(k) {
-                    data.y[k] - (self.output(data.u[k], data.regressors(k), &mut s.phi) - off)
-                } else {
-                    Vec3::zeros()
-                }
-            })
+            .into_par_iter()
+            .with_min_len(RESIDUAL_ROWS_PER_TASK)
+            .map_init(
+                || self.scratch(),
+                |s, k| {
+                    if rows(k) {
+                        data.y[k] - (self.output(data.u[k], data.regressors(k), &mut s.phi) - off)
+                    } else {
+                        Vec3::zeros()
+                    }
+                },
+            )
             .collect()
     }
 
