@@ -54,22 +54,7 @@ impl NormalEquations {
         if w <= 0.0 {
             return;
         }
-        let p = x.len();
-        for i in 0..p {
-            let wxi = w * x[i];
-            if wxi == 0.0 {
-                continue;
-            }
-            // Upper triangle only; mirrored in `solve`.
-            for j in i..p {
-                self.xtx[(i, j)] += wxi * x[j];
-            }
-            for (k, yk) in y.iter().enumerate() {
-                self.xty[(i, k)] += wxi * yk;
-            }
-        }
-        self.weight_sum += w;
-        self.rows += 1;
+        self.add_block(0, x, y, w);
     }
 
     /// Adds one row whose regressors are zero except `vals` at the columns `cols` (ascending):
@@ -81,13 +66,50 @@ impl NormalEquations {
             return;
         }
         debug_assert!(cols.windows(2).all(|c| c[0] < c[1]), "ascending columns");
+        // A row's nonzero regressors are usually one run of columns (the local models near
+        // its input): a dense block then.
+        if let (Some(&first), Some(&last)) = (cols.first(), cols.last())
+            && last - first + 1 == cols.len()
+        {
+            return self.add_block(first, vals, y, w);
+        }
+        let p = self.xtx.nrows();
+        let xtx = self.xtx.as_mut_slice();
         for (a, &i) in cols.iter().enumerate() {
             let wxi = w * vals[a];
             if wxi == 0.0 {
                 continue;
             }
+            // The lower triangle, along column i (see `add_block`).
+            let column = &mut xtx[i * p..(i + 1) * p];
             for (b, &j) in cols.iter().enumerate().skip(a) {
-                self.xtx[(i, j)] += wxi * vals[b];
+                column[j] += wxi * vals[b];
+            }
+            for (k, yk) in y.iter().enumerate() {
+                self.xty[(i, k)] += wxi * yk;
+            }
+        }
+        self.weight_sum += w;
+        self.rows += 1;
+    }
+
+    /// Adds one row whose regressors are zero except `vals` at the columns `first..` (a dense
+    /// run; `w > 0`). The sums go to the lower triangle, mirrored in `factor`: element (j, i),
+    /// j >= i, lies in column i, whose rows are next to each other in nalgebra's column-major
+    /// storage, so each regressor adds one contiguous run.
+    fn add_block(&mut self, first: usize, vals: &[f64], y: &[f64], w: f64) {
+        let p = self.xtx.nrows();
+        let n = vals.len();
+        let xtx = self.xtx.as_mut_slice();
+        for a in 0..n {
+            let wxi = w * vals[a];
+            if wxi == 0.0 {
+                continue;
+            }
+            let i = first + a;
+            let column = &mut xtx[i * p + i..i * p + first + n];
+            for (c, v) in column.iter_mut().zip(&vals[a..]) {
+                *c += wxi * v;
             }
             for (k, yk) in y.iter().enumerate() {
                 self.xty[(i, k)] += wxi * yk;
@@ -153,9 +175,10 @@ impl NormalEquations {
             return Err(SolveError::NoData);
         }
         let mut a = self.xtx.clone();
+        // The sums are in the lower triangle (`add_block`): mirrored into the upper.
         for i in 0..p {
             for j in 0..i {
-                a[(i, j)] = a[(j, i)];
+                a[(j, i)] = a[(i, j)];
             }
         }
         // Equilibrate: D^-1/2 A D^-1/2 has a unit diagonal, so the pivot test below is scale-free.
@@ -287,6 +310,40 @@ mod tests {
             NormalEquations::new(2, 1).solve().unwrap_err(),
             SolveError::NoData
         );
+    }
+
+    #[test]
+    fn sparse_rows_sum_exactly_as_their_full_rows() {
+        // Rows nonzero on a run of columns (the dense fast path) and on scattered columns
+        // (the general one) give the very sums of the same rows written out in full.
+        let p = 6;
+        let (mut full, mut sparse) = (NormalEquations::new(p, 2), NormalEquations::new(p, 2));
+        let rows: [(&[usize], &[f64]); 4] = [
+            (&[1, 2, 3], &[0.7, -1.3, 2.1]),
+            (&[0, 2, 5], &[1.1, 0.4, -0.9]),
+            (&[3, 4, 5], &[0.2, 3.3, -0.6]),
+            (&[0, 1, 2, 3, 4, 5], &[1.0, 0.5, 0.25, -0.5, 2.0, 0.1]),
+        ];
+        for (r, (cols, vals)) in rows.iter().enumerate() {
+            let mut x = vec![0.0; p];
+            for (c, v) in cols.iter().zip(vals.iter()) {
+                x[*c] = *v;
+            }
+            let (y, w) = ([r as f64 - 1.5, 0.3 * r as f64], 0.5 + r as f64);
+            full.add(&x, &y, w);
+            sparse.add_sparse(cols, vals, &y, w);
+        }
+        let bits = |m: &DMatrix<f64>| m.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+        assert_eq!(
+            (bits(&full.xtx), bits(&full.xty)),
+            (bits(&sparse.xtx), bits(&sparse.xty)),
+            "full rows {} {} vs sparse rows {} {}",
+            full.xtx,
+            full.xty,
+            sparse.xtx,
+            sparse.xty
+        );
+        assert_eq!((full.rows(), sparse.rows()), (4, 4));
     }
 
     #[test]
