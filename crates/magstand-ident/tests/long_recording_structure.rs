@@ -102,19 +102,14 @@ fn a_long_recording_finds_its_noise_law_and_its_disturbance() {
     assert!(worst < 0.15, "worst error {worst} µT over the levels");
 }
 
-/// A fit on every row of a long recording whose input never repeats (a current, a flight's
-/// throttle) sums its rows in chunks on every core: the coefficients must not depend on the
-/// number of threads, and must still be the disturbance's.
-#[test]
-fn a_long_fit_on_every_row_does_not_depend_on_the_thread_count() {
-    use magstand_ident::local_linear::{Estimation, FIT_CHUNK_ROWS};
-    let n = 3 * FIT_CHUNK_ROWS + 123;
+/// `n` rows of a slow sweep (`rate` radians a row) with a wobble, so that no two rows share
+/// an input, but for `off` motors-off rows at the end (the eq. 9 reference), with the
+/// disturbance `truth` and the noise of [`recording`].
+fn sweep(n: usize, off: usize, rate: f64) -> Dataset {
     let mut rec = recording(n);
-    // A slow sweep with a wobble: no two rows share an input, but for the motors-off rows at
-    // the end (the eq. 9 reference).
     rec.thr[0] = (0..n)
-        .map(|r| match r < n - 2000 {
-            true => 0.5 + 0.45 * (r as f64 * 2e-4).sin() + 1e-3 * (r as f64 * 0.77).sin(),
+        .map(|r| match r < n - off {
+            true => 0.5 + 0.45 * (r as f64 * rate).sin() + 1e-3 * (r as f64 * 0.77).sin(),
             false => 0.0,
         })
         .collect();
@@ -125,23 +120,21 @@ fn a_long_fit_on_every_row_does_not_depend_on_the_thread_count() {
     }
     let data = Dataset::from_recording(&rec, InputKind::Throttle, "sweep").unwrap();
     assert!(data.group_index().is_none(), "the input must not repeat");
+    data
+}
+
+/// A fit on every row of a long recording whose input never repeats (a current, a flight's
+/// throttle) sums its rows in chunks on every core: the coefficients must not depend on the
+/// number of threads, and must still be the disturbance's.
+#[test]
+fn a_long_fit_on_every_row_does_not_depend_on_the_thread_count() {
+    use magstand_ident::local_linear::{Estimation, FIT_CHUNK_ROWS};
+    let data = sweep(3 * FIT_CHUNK_ROWS + 123, 2000, 2e-4);
     for estimation in [Estimation::Local, Estimation::Global] {
         let config = FitConfig::fixed(vec![0.0, 0.5, 1.0], 4.0, estimation)
             .check()
             .unwrap();
-        let on = |threads: usize| {
-            rayon::ThreadPoolBuilder::new()
-                .num_threads(threads)
-                .build()
-                .unwrap()
-                .install(|| config.fit(&data).unwrap())
-        };
-        let (one, two) = (on(1), on(2));
-        assert_eq!(
-            serde_json::to_string(&one.structure).unwrap(),
-            serde_json::to_string(&two.structure).unwrap(),
-            "{estimation:?}: coefficients differ between 1 and 2 threads"
-        );
+        let one = fitted_alike_on_1_and_2_threads(&config, &data);
         // Three local lines follow the cubic to within its curvature between the centres.
         let worst = worst_error(&one, 0.1, 0.9);
         assert!(worst < 1.0, "{estimation:?}: worst error {worst} µT");
@@ -153,34 +146,29 @@ fn a_long_fit_on_every_row_does_not_depend_on_the_thread_count() {
 /// the number of threads either.
 #[test]
 fn an_automatic_structure_does_not_depend_on_the_thread_count() {
-    let n = 20_000;
-    let mut rec = recording(n);
-    rec.thr[0] = (0..n)
-        .map(|r| match r < n - 1000 {
-            true => 0.5 + 0.45 * (r as f64 * 7e-4).sin() + 1e-3 * (r as f64 * 0.77).sin(),
-            false => 0.0,
-        })
-        .collect();
-    for r in 0..n {
-        let u = rec.thr[0][r];
-        let noise = rec.mag_ut[r] - Vec3::new(20.0, 1.0, 45.0) - truth(0.0);
-        rec.mag_ut[r] = Vec3::new(20.0, 1.0, 45.0) + truth(u) + noise;
-    }
-    let data = Dataset::from_recording(&rec, InputKind::Throttle, "sweep").unwrap();
     // Distinct rows, more than the structure search's chunk of 8,192.
-    assert!(data.group_index().is_none(), "the input must not repeat");
-    let config = FitConfig::automatic().check().unwrap();
+    let data = sweep(20_000, 1000, 7e-4);
+    fitted_alike_on_1_and_2_threads(&FitConfig::automatic().check().unwrap(), &data);
+}
+
+/// The model `config` fits to `data` on one thread, after asserting that two threads fit the
+/// same one, bit for bit.
+fn fitted_alike_on_1_and_2_threads(
+    config: &magstand_ident::ValidFitConfig,
+    data: &Dataset,
+) -> magstand_ident::Model {
     let on = |threads: usize| {
         rayon::ThreadPoolBuilder::new()
             .num_threads(threads)
             .build()
             .unwrap()
-            .install(|| config.fit(&data).unwrap())
+            .install(|| config.fit(data).unwrap())
     };
     let (one, two) = (on(1), on(2));
     assert_eq!(
         serde_json::to_string(&one.structure).unwrap(),
         serde_json::to_string(&two.structure).unwrap(),
-        "the automatic structure differs between 1 and 2 threads"
+        "the model differs between 1 and 2 threads ({config:?})"
     );
+    one
 }
