@@ -328,13 +328,7 @@ impl AugmentedModel {
             terms.push((e.as_ref(), t.theta.as_slice()));
         }
         let split = Split::new(&rec.t_s, self.block_s, self.holdout_every);
-        let logged = Logged {
-            bat_v: None,
-            bat_a: rec
-                .bat_a
-                .as_deref()
-                .filter(|_| self.follow_recorded_current),
-        };
+        let logged = Logged::of(rec, false, self.follow_recorded_current);
         let nominal_trace = replay_logged(&nominal, &rec.t_s, &rec.thr, logged, 0.5);
         let ctx = Context {
             rec,

@@ -135,18 +135,35 @@ where
     I: Iterator<Item = (f64, &'r [f64], Vec3, Vec3)>,
 {
     let p = data.spec.regressor_count();
+    let total = sum_in_chunks(
+        n,
+        chunk,
+        |range| accumulate(p, partition, estimation, rows_of(range)),
+        |sum, part| sum.merge(&part),
+    );
+    solve(data, partition, total)
+}
+
+/// `part` of each chunk of `0..n`, `chunk` long (one empty chunk when `n` is 0), computed on
+/// every core and folded by `merge` in chunk order: the chunks are fixed by `n` and `chunk`
+/// alone, so the result does not depend on the number of threads.
+pub(crate) fn sum_in_chunks<T: Send>(
+    n: usize,
+    chunk: usize,
+    part: impl Fn(std::ops::Range<usize>) -> T + Sync,
+    merge: impl Fn(&mut T, T),
+) -> T {
     let starts: Vec<usize> = (0..n.max(1)).step_by(chunk.max(1)).collect();
-    let total = starts
+    starts
         .par_iter()
-        .map(|&a| accumulate(p, partition, estimation, rows_of(a..(a + chunk).min(n))))
-        .collect::<Vec<Accumulated>>()
+        .map(|&a| part(a..(a + chunk).min(n)))
+        .collect::<Vec<T>>()
         .into_iter()
-        .reduce(|mut sum, part| {
-            sum.merge(&part);
+        .reduce(|mut sum, next| {
+            merge(&mut sum, next);
             sum
         })
-        .expect("at least one chunk");
-    solve(data, partition, total)
+        .expect("at least one chunk")
 }
 
 /// The normal equations of a network's fit, before the solve.

@@ -10,7 +10,7 @@ use magstand_core::rbf::RbfPartition;
 
 use crate::IdentError;
 use crate::dataset::Dataset;
-use crate::local_linear::{Estimation, LocalLinearNet, fit_weighted_rows};
+use crate::local_linear::{Estimation, LocalLinearNet, fit_weighted_rows, sum_in_chunks};
 
 /// Which group each row of a dataset belongs to; groups in ascending input.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -214,41 +214,30 @@ impl<'d> Groups<'d> {
         bins: usize,
         lo: f64,
         hi: f64,
-        phi: &mut [f64],
     ) -> Vec<(Vec3, usize)> {
         let width = (hi - lo).max(1e-12);
-        let chunk_sums = |range: std::ops::Range<usize>, phi: &mut [f64]| {
-            let mut out = vec![(Vec3::zeros(), 0usize); bins];
-            for i in range {
-                let u = self.u[i];
-                let b = (((u - lo) / width * bins as f64) as usize).min(bins - 1);
-                out[b].0 += self.y_sum[i] - net.eval(u, self.regressors(i), phi) * self.n[i] as f64;
-                out[b].1 += self.n[i];
-            }
-            out
-        };
-        let n = self.len();
-        if n <= GROUPS_PER_CHUNK {
-            return chunk_sums(0..n, phi);
-        }
-        // Chunks fixed by the group count, summed in order: the same sums at any thread count.
-        use rayon::prelude::*;
-        let starts: Vec<usize> = (0..n).step_by(GROUPS_PER_CHUNK).collect();
-        let parts: Vec<Vec<(Vec3, usize)>> = starts
-            .par_iter()
-            .map(|&a| {
-                let mut phi = vec![0.0; phi.len()];
-                chunk_sums(a..(a + GROUPS_PER_CHUNK).min(n), &mut phi)
-            })
-            .collect();
-        let mut out = vec![(Vec3::zeros(), 0usize); bins];
-        for part in parts {
-            for (o, p) in out.iter_mut().zip(part) {
-                o.0 += p.0;
-                o.1 += p.1;
-            }
-        }
-        out
+        sum_in_chunks(
+            self.len(),
+            GROUPS_PER_CHUNK,
+            |range| {
+                let mut phi = vec![0.0; net.partition.len()];
+                let mut out = vec![(Vec3::zeros(), 0usize); bins];
+                for i in range {
+                    let u = self.u[i];
+                    let b = (((u - lo) / width * bins as f64) as usize).min(bins - 1);
+                    out[b].0 += self.y_sum[i]
+                        - net.eval(u, self.regressors(i), &mut phi) * self.n[i] as f64;
+                    out[b].1 += self.n[i];
+                }
+                out
+            },
+            |out, part| {
+                for (o, p) in out.iter_mut().zip(part) {
+                    o.0 += p.0;
+                    o.1 += p.1;
+                }
+            },
+        )
     }
 }
 

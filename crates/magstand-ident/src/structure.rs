@@ -87,7 +87,7 @@ pub fn choose(
         };
         let bin_u = |b: usize| lo + (hi - lo) * (b as f64 + 0.5) / BINS as f64;
         let bin_weight = |b: usize| weight_at(bin_u(b));
-        let scored = score_groups.binned_residuals(&net, BINS, lo, hi, &mut phi);
+        let scored = score_groups.binned_residuals(&net, BINS, lo, hi);
         let score: f64 = scored
             .iter()
             .enumerate()
@@ -105,7 +105,7 @@ pub fn choose(
         }
         // Local losses on the fitting rows: each bin's systematic error shared by the models'
         // weights at the bin.
-        let fitted = fit_groups.binned_residuals(&net, BINS, lo, hi, &mut phi);
+        let fitted = fit_groups.binned_residuals(&net, BINS, lo, hi);
         let mut loss = vec![0.0; intervals.len()];
         for (b, &x) in fitted.iter().enumerate() {
             let e = bin_energy(x, bin_weight(b));

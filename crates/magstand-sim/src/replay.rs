@@ -143,6 +143,17 @@ pub struct Logged<'a> {
     pub bat_a: Option<&'a [f64]>,
 }
 
+impl<'a> Logged<'a> {
+    /// The supply columns of `rec` a replay follows: its `bat_v` when `voltage`, its `bat_a`
+    /// when `current` (each only where logged).
+    pub fn of(rec: &'a magstand_core::Recording, voltage: bool, current: bool) -> Self {
+        Logged {
+            bat_v: rec.bat_v.as_deref().filter(|_| voltage),
+            bat_a: rec.bat_a.as_deref().filter(|_| current),
+        }
+    }
+}
+
 /// [`replay`] following the recorded supply columns in `logged`.
 pub fn replay_logged(
     scenario: &Scenario,

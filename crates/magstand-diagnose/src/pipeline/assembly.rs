@@ -221,10 +221,7 @@ fn simulation_rmse(
     weights: &Weights,
 ) -> Result<[f64; 3], DiagnoseError> {
     let (rec, split) = (ctx.rec, ctx.split);
-    let logged = Logged {
-        bat_v: None,
-        bat_a: rec.bat_a.as_deref().filter(|_| ctx.follow_recorded_current),
-    };
+    let logged = Logged::of(rec, false, ctx.follow_recorded_current);
     let tr = replay_logged(
         augmented.params(),
         &rec.t_s,

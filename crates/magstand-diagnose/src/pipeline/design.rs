@@ -118,14 +118,7 @@ pub(crate) fn build_with_lead(ctx: &Context, terms: &[(&dyn Effect, &[f64])], le
         e.apply(ctx, &mut s, theta);
         recorded_v |= e.uses_recorded_voltage(ctx);
     }
-    let logged = Logged {
-        bat_v: ctx.rec.bat_v.as_deref().filter(|_| recorded_v),
-        bat_a: ctx
-            .rec
-            .bat_a
-            .as_deref()
-            .filter(|_| ctx.follow_recorded_current),
-    };
+    let logged = Logged::of(ctx.rec, recorded_v, ctx.follow_recorded_current);
     // The magnetometer's delay shifts a replay without changing it: replays are kept without
     // it and shifted here, so a search over the delay replays once.
     let delay_s = std::mem::take(&mut s.logging.mag_delay_s);

@@ -159,10 +159,7 @@ fn prepare(
     let mut scenario = nominal.params().clone();
     // The program is the recording's; the nominal stand's own logging delay is physics.
     scenario.study = Default::default();
-    let logged = Logged {
-        bat_v: None,
-        bat_a: rec.bat_a.as_deref().filter(|_| follow_recorded_current),
-    };
+    let logged = Logged::of(rec, false, follow_recorded_current);
     let nominal_trace = replay_logged(&scenario, &rec.t_s, &rec.thr, logged, 0.5);
     let avionics = scenario.supply.avionics_current_a();
     let max_motor_a = nominal_trace
