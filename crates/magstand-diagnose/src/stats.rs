@@ -72,19 +72,38 @@ pub(crate) fn chi2_quantile(p: f64, dof: f64) -> f64 {
     ChiSquared::new(dof.max(1e-9)).map_or(f64::INFINITY, |d| d.inverse_cdf(p))
 }
 
+/// What [`ljung_box`] finds in a residual.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct LjungBox {
+    /// The statistic Q.
+    pub(crate) q: f64,
+    /// Its upper-tail p-value (chi-square with `lags` degrees of freedom).
+    pub(crate) p: f64,
+    /// Root mean square of the autocorrelations over the lags: for structure that varies
+    /// slowly against the lags, about the share of the residual's variance it carries (white
+    /// noise gives about `1/sqrt(n)`). The p-value says whether there is structure; this says
+    /// how much.
+    pub(crate) rms_autocorrelation: f64,
+}
+
 /// Ljung-Box statistic of standardized residuals `z` over `lags` lags, where pairs are only
-/// formed within one segment (`segment[i] == segment[i + k]`). Returns (Q, p-value).
-pub(crate) fn ljung_box(z: &[f64], segment: &[usize], lags: usize) -> (f64, f64) {
+/// formed within one segment (`segment[i] == segment[i + k]`).
+pub(crate) fn ljung_box(z: &[f64], segment: &[usize], lags: usize) -> LjungBox {
+    let none = LjungBox {
+        q: 0.0,
+        p: 1.0,
+        rms_autocorrelation: 0.0,
+    };
     let n = z.len();
     if n <= lags + 1 {
-        return (0.0, 1.0);
+        return none;
     }
     let mean = z.iter().sum::<f64>() / n as f64;
     let c0: f64 = z.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / n as f64;
     if c0 <= 0.0 {
-        return (0.0, 1.0);
+        return none;
     }
-    let mut q = 0.0;
+    let (mut q, mut rho2, mut counted) = (0.0, 0.0, 0usize);
     for k in 1..=lags {
         let mut s = 0.0;
         let mut pairs = 0usize;
@@ -99,9 +118,19 @@ pub(crate) fn ljung_box(z: &[f64], segment: &[usize], lags: usize) -> (f64, f64)
         }
         let rho = s / pairs as f64 / c0;
         q += rho * rho * (pairs as f64);
+        rho2 += rho * rho;
+        counted += 1;
     }
     // With pairs restricted to segments, `pairs` plays the role of n - k (large-sample form).
-    (q, chi2_sf(q, lags as f64))
+    LjungBox {
+        q,
+        p: chi2_sf(q, lags as f64),
+        rms_autocorrelation: if counted > 0 {
+            (rho2 / counted as f64).sqrt()
+        } else {
+            0.0
+        },
+    }
 }
 
 #[cfg(test)]
@@ -120,7 +149,7 @@ mod tests {
         };
         let white: Vec<f64> = (0..5000).map(|_| uniform() * 12f64.sqrt()).collect();
         let seg = vec![0; white.len()];
-        let (_, p) = ljung_box(&white, &seg, 10);
+        let p = ljung_box(&white, &seg, 10).p;
         assert!(p > 0.001, "white noise rejected, p = {p}");
         let mut acc = 0.0;
         let walk: Vec<f64> = white
@@ -130,8 +159,45 @@ mod tests {
                 acc
             })
             .collect();
-        let (_, p) = ljung_box(&walk, &seg, 10);
+        let p = ljung_box(&walk, &seg, 10).p;
         assert!(p < 1e-10, "AR(1) accepted as white, p = {p}");
+    }
+
+    #[test]
+    fn ljung_box_share_measures_how_much_of_the_variance_is_structure() {
+        let mut s = 777u64;
+        let mut uniform = || {
+            s = s
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (s >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        };
+        let n = 20_000;
+        // Unit-variance white noise, and levels held for 200 rows with variance `v`: the
+        // levels carry v / (1 + v) of the sum's variance.
+        let noise: Vec<f64> = (0..n).map(|_| uniform() * 12f64.sqrt()).collect();
+        let seg = vec![0; n];
+        let white = ljung_box(&noise, &seg, 20).rms_autocorrelation;
+        assert!(white < 3.0 / (n as f64).sqrt(), "white noise share {white}");
+        for v in [0.05f64, 0.25, 1.0] {
+            let mut level = 0.0;
+            let z: Vec<f64> = noise
+                .iter()
+                .enumerate()
+                .map(|(i, e)| {
+                    if i % 200 == 0 {
+                        level = uniform() * (12.0 * v).sqrt();
+                    }
+                    level + e
+                })
+                .collect();
+            let share = ljung_box(&z, &seg, 20).rms_autocorrelation;
+            let expected = v / (1.0 + v);
+            assert!(
+                (share - expected).abs() < 0.35 * expected,
+                "levels of variance {v}: share {share}, expected about {expected}"
+            );
+        }
     }
 
     #[test]

@@ -39,7 +39,7 @@ impl Effect for CurrentLag {
         vec![Search {
             name: "spinup_tau_s",
             unit: "s",
-            lo: 0.005,
+            lo: 0.001,
             hi: 3.0,
             log: true,
             points: 15,

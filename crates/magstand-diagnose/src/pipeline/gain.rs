@@ -4,7 +4,7 @@
 use magstand_core::Vec3;
 
 use crate::fit::Weights;
-use crate::stats::{ljung_box, normal_sf, one_sided_t, signed_rank};
+use crate::stats::{LjungBox, ljung_box, normal_sf, one_sided_t, signed_rank};
 use magstand_core::held_out::Split;
 
 /// Lags of the whiteness test.
@@ -144,10 +144,16 @@ pub(crate) fn standardized(resid: &[Vec3], w: &Weights) -> Vec<Vec3> {
 
 /// Ljung-Box p-value per axis of the held-out standardized residuals.
 pub(crate) fn whiteness(z: &[Vec3], split: &Split) -> [f64; 3] {
+    residual_structure(z, split).map(|t| t.p)
+}
+
+/// The Ljung-Box test per axis of the held-out standardized residuals, pairs formed within a
+/// held-out block only.
+pub(crate) fn residual_structure(z: &[Vec3], split: &Split) -> [LjungBox; 3] {
     let rows: Vec<usize> = (0..z.len()).filter(|&r| split.holdout[r]).collect();
     let seg: Vec<usize> = rows.iter().map(|&r| split.block[r]).collect();
     std::array::from_fn(|a| {
         let za: Vec<f64> = rows.iter().map(|&r| z[r][a]).collect();
-        ljung_box(&za, &seg, LAGS).1
+        ljung_box(&za, &seg, LAGS)
     })
 }

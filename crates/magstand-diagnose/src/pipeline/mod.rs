@@ -96,7 +96,8 @@ pub(crate) fn diagnose_with(
     let mut d = assembly::assemble(&ctx, nominal, &base, outcome, &rows, cfg)?;
     if let Some(f) = flight {
         d.baseline.calibration.extend(f.calibration);
-        d.warnings = f.warnings;
+        // The flight's doubts first: they qualify everything after them.
+        d.warnings.splice(0..0, f.warnings);
     }
     Ok(d)
 }
