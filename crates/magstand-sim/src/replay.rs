@@ -11,7 +11,7 @@
 //! than the sensor noise.
 use crate::Scenario;
 use crate::battery::SupplyState;
-use crate::motor::MotorState;
+use crate::motor::{MotorConstants, MotorParams, MotorState};
 use crate::stand_module::{Electrical, modules};
 use magstand_core::Vec3;
 use magstand_core::interpolation::{interpolate, locate};
@@ -74,6 +74,40 @@ fn substeps_into(out: &mut Vec<(f64, f64, f64)>, dt: f64, switch_s: f64, settle_
         if b > fine_end {
             out.extend(uniform(fine_end, b, SETTLED_SUBSTEP_S));
         }
+    }
+}
+
+/// A motor's steady speed for one command at one supply voltage, kept while both hold.
+#[derive(Debug, Clone, Copy)]
+struct TargetSpeed {
+    command_bits: u64,
+    voltage_bits: u64,
+    speed_rad_s: f64,
+    driven: bool,
+}
+
+impl TargetSpeed {
+    /// No target yet: no command has these bits (a NaN's).
+    const NONE: TargetSpeed = TargetSpeed {
+        command_bits: u64::MAX,
+        voltage_bits: u64::MAX,
+        speed_rad_s: 0.0,
+        driven: false,
+    };
+
+    fn new(p: &MotorParams, c: &MotorConstants, command: f64, voltage_v: f64) -> Self {
+        let duty = p.duty(command);
+        Self {
+            command_bits: command.to_bits(),
+            voltage_bits: voltage_v.to_bits(),
+            speed_rad_s: c.steady_speed(p, duty, voltage_v),
+            driven: duty > 0.0,
+        }
+    }
+
+    /// Whether this is the target for `command` at `voltage_v`.
+    fn seen(&self, command: f64, voltage_v: f64) -> bool {
+        self.command_bits == command.to_bits() && self.voltage_bits == voltage_v.to_bits()
     }
 }
 
@@ -199,7 +233,22 @@ pub fn replay_logged(
     // The command that acted last, per motor: it decides whether the ESC is driving.
     let mut acting: Vec<usize> = vec![0; n_motors];
     let constants: Vec<_> = (0..n_motors).map(|m| p.motors.constants(m)).collect();
+    // Each motor's target speed for the command and voltage it last saw: a command is held
+    // over many substeps and the voltage often fixed, and the target (a square root and two
+    // divisions) is the same bits each time.
+    let mut targets = vec![TargetSpeed::NONE; n_motors];
+    // A supply whose voltage does not move with the load (a bench without source resistance)
+    // gives one voltage: computed once, it leaves the motors' current out of the next
+    // substep's dependency chain (the same bits: V - 0 * I is V).
+    let fixed_voltage = match p.supply {
+        crate::battery::SupplyParams::Bench {
+            source_resistance_ohm,
+            ..
+        } if source_resistance_ohm == 0.0 => Some(supply.voltage_v(&p.supply, 0.0)),
+        _ => None,
+    };
     let mut steps = Vec::new();
+    let mut last_alpha = (f64::NAN.to_bits(), 0.0);
     for r in 0..rows {
         if r > 0 {
             let dt = t_s[r] - t_s[r - 1];
@@ -207,28 +256,43 @@ pub fn replay_logged(
             let settle_s = SETTLE_TIME_CONSTANTS * p.motors.spinup_tau_s;
             substeps_into(&mut steps, dt, lead_from, settle_s);
             for &(a, b, h) in &steps {
-                let voltage = match bat_v {
-                    Some(v) => v[r - 1],
-                    None => supply.voltage_v(&p.supply, total_a),
+                let voltage = match (bat_v, fixed_voltage) {
+                    (Some(v), _) => v[r - 1],
+                    (None, Some(v)) => v,
+                    (None, None) => supply.voltage_v(&p.supply, total_a),
                 };
                 // A substep that straddles the switch is split at it.
                 let parts = [
                     (r - 1, (lead_from.min(b) - a).max(0.0)),
                     (r, (b - lead_from.max(a)).max(0.0)),
                 ];
-                // Every motor steps by the same lengths: one lag factor each.
-                let alphas = parts.map(|(_, len)| p.motors.spinup_alpha(len));
+                // Every motor steps by the same lengths: one lag factor each, none for a part
+                // of no length (it steps no motor), and the last one kept for a length seen
+                // again (the substeps of an interval are alike).
+                let alphas = parts.map(|(_, len)| {
+                    if len <= 0.0 {
+                        return 0.0;
+                    }
+                    if len.to_bits() != last_alpha.0 {
+                        last_alpha = (len.to_bits(), p.motors.spinup_alpha(len));
+                    }
+                    last_alpha.1
+                });
                 total_a = avionics;
                 for (m, st) in motors.iter_mut().enumerate() {
                     for (&(row, len), &alpha) in parts.iter().zip(&alphas) {
                         if len > 0.0 {
-                            st.step_electrical_with(
-                                &p.motors,
-                                &constants[m],
-                                command(m, row),
-                                voltage,
-                                alpha,
-                            );
+                            let cmd = command(m, row);
+                            if !targets[m].seen(cmd, voltage) {
+                                targets[m] =
+                                    TargetSpeed::new(&p.motors, &constants[m], cmd, voltage);
+                            }
+                            let target = &targets[m];
+                            // What `MotorState::step_electrical_with` does, with the target
+                            // kept.
+                            st.speed_rad_s += (target.speed_rad_s - st.speed_rad_s) * alpha;
+                            st.current_a =
+                                constants[m].current(&p.motors, st.speed_rad_s, target.driven);
                             acting[m] = row;
                         }
                     }
@@ -244,9 +308,10 @@ pub fn replay_logged(
                 }
             }
         }
-        let voltage = match bat_v {
-            Some(v) => v[r],
-            None => supply.voltage_v(&p.supply, total_a),
+        let voltage = match (bat_v, fixed_voltage) {
+            (Some(v), _) => v[r],
+            (None, Some(v)) => v,
+            (None, None) => supply.voltage_v(&p.supply, total_a),
         };
         let electrical = Electrical {
             total_a: supply_a(r, total_a),

@@ -43,19 +43,27 @@ impl Effect for Hysteresis {
             points: 17,
         }]
     }
-    fn apply(&self, _ctx: &Context, s: &mut Scenario, theta: &[f64]) {
-        // The play operator's output is the regressor; the field comes from its coefficient.
+    fn apply(&self, _ctx: &Context, s: &mut Scenario, _theta: &[f64]) {
+        // The play operator's output is the regressor, computed from the replayed current in
+        // `regressors`; the field comes from its coefficient. The play is left out of the
+        // replayed scenario, so every play searched shares one replay of the motors.
         s.hysteresis.enabled = false;
-        if let Some(p) = Play::from_slice(theta) {
-            s.hysteresis.play_a = p.play_a;
-        }
     }
-    fn regressors(&self, ctx: &Context, trace: &Trace, _theta: &[f64]) -> Vec<(String, Vec<f64>)> {
-        // The hysteresis module is always part of the stand; a trace without its column
-        // (none is made) would regress on nothing.
-        let mut play = trace
-            .column(magstand_sim::hysteresis::PLAY_A)
-            .map_or_else(|| vec![0.0; trace.len()], <[f64]>::to_vec);
+    fn regressors(&self, ctx: &Context, trace: &Trace, theta: &[f64]) -> Vec<(String, Vec<f64>)> {
+        let Some(p) = Play::from_slice(theta) else {
+            return Vec::new();
+        };
+        // The stand's hysteresis module's play operator, on the same current, row by row
+        // from rest (`magstand_sim::hysteresis`).
+        let mut out = 0.0;
+        let mut play: Vec<f64> = trace
+            .total_a
+            .iter()
+            .map(|&a| {
+                out = magstand_sim::hysteresis::play(out, a, p.play_a);
+                out
+            })
+            .collect();
         // A nominal current is a smooth function of the rotor speeds, which the baseline
         // columns already follow; a measured one is not, so only the play's departure from it
         // is the hysteresis.
