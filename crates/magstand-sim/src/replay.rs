@@ -242,9 +242,9 @@ pub fn replay_logged(
     // substep's dependency chain (the same bits: V - 0 * I is V).
     let fixed_voltage = match p.supply {
         crate::battery::SupplyParams::Bench {
-            source_resistance_ohm,
+            source_resistance_ohm: 0.0,
             ..
-        } if source_resistance_ohm == 0.0 => Some(supply.voltage_v(&p.supply, 0.0)),
+        } => Some(supply.voltage_v(&p.supply, 0.0)),
         _ => None,
     };
     let mut steps = Vec::new();
