@@ -1,6 +1,6 @@
 use magstand_sim::Scenario;
 use magstand_sim::battery::SupplyParams;
-use magstand_sim::replay::replay;
+use magstand_sim::replay::{Trace, replay};
 
 use super::{Context, Effect, EffectFit, Param};
 use crate::optimize::{Search, minimize};
@@ -110,6 +110,33 @@ impl Effect for BatterySag {
     }
     fn uses_recorded_voltage(&self, ctx: &Context) -> bool {
         ctx.rec.bat_v.is_some()
+    }
+    fn regressors(&self, ctx: &Context, trace: &Trace, _theta: &[f64]) -> Vec<(String, Vec<f64>)> {
+        // With the voltage logged, the replay follows it through the nominal motor, whose
+        // current grows about as the voltage squared at a fixed command (speed with the
+        // voltage, propeller load with the speed squared). Another stand's current law may
+        // follow its voltage more or less steeply: that steepness is not stated, so the
+        // motor current times the voltage's relative change enters with a free gain.
+        let Some(v) = ctx.rec.bat_v.as_deref() else {
+            return Vec::new();
+        };
+        // Relative to the nominal supply's no-load voltage, a constant of the model (not of
+        // the recording), so that a model file predicts a new recording with the same column.
+        let reference_v =
+            magstand_sim::battery::SupplyState::default().voltage_v(&ctx.nominal.supply, 0.0);
+        if !(reference_v > 0.0) {
+            return Vec::new();
+        }
+        let avionics = ctx.nominal.supply.avionics_current_a();
+        vec![(
+            "current_x_voltage_change".into(),
+            trace
+                .total_a
+                .iter()
+                .zip(v)
+                .map(|(a, v)| (a - avionics) * (v - reference_v) / reference_v)
+                .collect(),
+        )]
     }
     fn switch_on(&self, ctx: &Context, s: &mut Scenario, f: &EffectFit) -> Vec<Param> {
         let fitted = if ctx.rec.bat_v.is_none() {
