@@ -137,16 +137,19 @@ pub(crate) fn ljung_box(z: &[f64], segment: &[usize], lags: usize) -> LjungBox {
 mod tests {
     use super::*;
 
-    #[test]
-    fn white_noise_passes_and_a_random_walk_fails_ljung_box() {
-        // A fixed pseudo-random sequence (LCG) keeps the test deterministic.
-        let mut s = 12345u64;
-        let mut uniform = || {
+    /// Uniform numbers on -0.5..0.5 from a fixed LCG: deterministic tests.
+    fn uniform_from(mut s: u64) -> impl FnMut() -> f64 {
+        move || {
             s = s
                 .wrapping_mul(6364136223846793005)
                 .wrapping_add(1442695040888963407);
             (s >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-        };
+        }
+    }
+
+    #[test]
+    fn white_noise_passes_and_a_random_walk_fails_ljung_box() {
+        let mut uniform = uniform_from(12345);
         let white: Vec<f64> = (0..5000).map(|_| uniform() * 12f64.sqrt()).collect();
         let seg = vec![0; white.len()];
         let p = ljung_box(&white, &seg, 10).p;
@@ -165,13 +168,7 @@ mod tests {
 
     #[test]
     fn ljung_box_share_measures_how_much_of_the_variance_is_structure() {
-        let mut s = 777u64;
-        let mut uniform = || {
-            s = s
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (s >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-        };
+        let mut uniform = uniform_from(777);
         let n = 20_000;
         // Unit-variance white noise, and levels held for 200 rows with variance `v`: the
         // levels carry v / (1 + v) of the sum's variance.
