@@ -59,7 +59,11 @@ pub(crate) struct Optimum {
     pub sd: Vec<Option<f64>>,
 }
 
-const GOLDEN_ITERATIONS: usize = 16;
+/// Golden-section steps around the best grid point: the bracket (at most two grid steps)
+/// shrinks to 0.618^10, under 1 % of it, finer than [`Search::at_bound`]'s 2 % of a step (so a
+/// minimum beyond the range is still seen at its edge) and than the curvature's step/50 is
+/// sensitive to. Each step is a replay of the recording for most parameters.
+const GOLDEN_ITERATIONS: usize = 10;
 
 /// Minimizes `f` (None where the fit fails) over the searches.
 pub(crate) fn minimize(
