@@ -86,43 +86,44 @@ pub(crate) fn minimize(
             sd: vec![],
         });
     }
-    // Grid (full factorial: at most two parameters per candidate), its points evaluated in
-    // parallel: the candidates of a round are searched in parallel too, but their searches
-    // differ tenfold in size, and the refinement after an acceptance searches alone. The
-    // first best point in grid order wins, as a sequential scan would have it.
-    let mut grid: Vec<Vec<f64>> = Vec::new();
-    let mut idx = vec![0usize; searches.len()];
-    loop {
-        grid.push(
-            searches
-                .iter()
-                .zip(&idx)
-                .map(|(s, &i)| s.u_range().0 + i as f64 * s.step())
-                .collect(),
-        );
-        let mut k = 0;
-        loop {
-            if k == idx.len() {
-                break;
-            }
-            idx[k] += 1;
-            if idx[k] < searches[k].points.max(2) {
-                break;
-            }
-            idx[k] = 0;
-            k += 1;
-        }
-        if k == idx.len() {
-            break;
-        }
-    }
-    let values: Vec<f64> = grid.par_iter().map(|u| eval(u)).collect();
-    let mut best_u = vec![0.0; searches.len()];
+    // Grid, its points evaluated in parallel: the candidates of a round are searched in
+    // parallel too, but their searches differ tenfold in size, and the refinement after an
+    // acceptance searches alone. The first best point in grid order wins, as a sequential
+    // scan would have it. One parameter: its whole grid. Several: a grid along each in turn
+    // from the middle of the others' ranges, the first one again at the end (a full factorial
+    // of two parameters costs their product, and each point is a replay of the recording);
+    // the golden-section passes below then refine them together.
+    let grid_along = |k: usize, base: &[f64]| -> Vec<Vec<f64>> {
+        (0..searches[k].points.max(2))
+            .map(|i| {
+                let mut u = base.to_vec();
+                u[k] = searches[k].u_range().0 + i as f64 * searches[k].step();
+                u
+            })
+            .collect()
+    };
+    let mut best_u: Vec<f64> = searches
+        .iter()
+        .map(|s| {
+            let (lo, hi) = s.u_range();
+            let middle = (s.points.max(2) - 1) / 2;
+            (lo + middle as f64 * s.step()).min(hi)
+        })
+        .collect();
     let mut best = f64::INFINITY;
-    for (u, v) in grid.into_iter().zip(values) {
-        if v < best {
-            best = v;
-            best_u = u;
+    let sweeps: Vec<usize> = if searches.len() == 1 {
+        vec![0]
+    } else {
+        (0..searches.len()).chain([0]).collect()
+    };
+    for k in sweeps {
+        let grid = grid_along(k, &best_u);
+        let values: Vec<f64> = grid.par_iter().map(|u| eval(u)).collect();
+        for (u, v) in grid.into_iter().zip(values) {
+            if v < best {
+                best = v;
+                best_u = u;
+            }
         }
     }
     if !best.is_finite() {
