@@ -169,7 +169,7 @@ pub(crate) fn locate(
         .collect();
     let axis_names = axes
         .iter()
-        .map(|&a| ["x", "y", "z"][a].to_string())
+        .map(|&a| magstand_core::AXES[a].to_string())
         .collect();
     if axes.is_empty() {
         axes = vec![0, 1, 2];

@@ -125,6 +125,11 @@ impl SupplyParams {
         }
     }
 
+    /// Terminal voltage at the start, with no load, V.
+    pub fn no_load_voltage_v(&self) -> f64 {
+        SupplyState::default().voltage_v(self, 0.0)
+    }
+
     /// Current drawn by the avionics, A.
     pub fn avionics_current_a(&self) -> f64 {
         match *self {

@@ -49,6 +49,7 @@ pub mod battery;
 mod error;
 pub mod hysteresis;
 pub mod interference;
+pub mod lag;
 pub mod magnetometer;
 pub mod motion;
 pub mod motor;

@@ -90,7 +90,7 @@ impl MotorParams {
     /// The fraction of the way to its target speed a rotor covers in `dt_s`: the exact
     /// discretization of the spin-up lag, stable for any step.
     pub fn spinup_alpha(&self, dt_s: f64) -> f64 {
-        1.0 - (-dt_s / self.spinup_tau_s).exp()
+        crate::lag::lag_factor(dt_s, self.spinup_tau_s)
     }
 
     /// Torque constant Kt = Ke, N m per A (and V s per rad).
@@ -241,9 +241,23 @@ impl MotorState {
         alpha: f64,
     ) {
         let duty = p.duty(command);
-        let target = c.steady_speed(p, duty, voltage_v);
-        self.speed_rad_s += (target - self.speed_rad_s) * alpha;
-        self.current_a = c.current(p, self.speed_rad_s, duty > 0.0);
+        self.step_toward(p, c, c.steady_speed(p, duty, voltage_v), duty > 0.0, alpha);
+    }
+
+    /// Advances speed and current toward a steady speed `target_rad_s` already worked out for
+    /// the command (`driven` while the ESC drives the motor), with lag factor `alpha`: what
+    /// [`MotorState::step_electrical_with`] does once it has the target, for a caller that
+    /// keeps the target while the command and the voltage hold.
+    pub fn step_toward(
+        &mut self,
+        p: &MotorParams,
+        c: &MotorConstants,
+        target_rad_s: f64,
+        driven: bool,
+        alpha: f64,
+    ) {
+        self.speed_rad_s += (target_rad_s - self.speed_rad_s) * alpha;
+        self.current_a = c.current(p, self.speed_rad_s, driven);
     }
 }
 

@@ -11,6 +11,7 @@
 //! than the sensor noise.
 use crate::Scenario;
 use crate::battery::SupplyState;
+use crate::lag::LagFactor;
 use crate::motor::{MotorConstants, MotorParams, MotorState};
 use crate::stand_module::{Electrical, modules};
 use magstand_core::Vec3;
@@ -205,7 +206,7 @@ pub fn replay_logged(
     let command = |m: usize, r: usize| thr[if thr.len() == 1 { 0 } else { m }][r];
     let mut supply = SupplyState::default();
     let avionics = p.supply.avionics_current_a();
-    let no_load_v = supply.voltage_v(&p.supply, 0.0);
+    let no_load_v = p.supply.no_load_voltage_v();
     let full_speed = p.motors.steady_speed(0, 1.0, no_load_v).max(1e-9);
     let mut motors = vec![MotorState::default(); n_motors];
     let mut stand_parts = modules(p);
@@ -237,18 +238,24 @@ pub fn replay_logged(
     // over many substeps and the voltage often fixed, and the target (a square root and two
     // divisions) is the same bits each time.
     let mut targets = vec![TargetSpeed::NONE; n_motors];
-    // A supply whose voltage does not move with the load (a bench without source resistance)
-    // gives one voltage: computed once, it leaves the motors' current out of the next
-    // substep's dependency chain (the same bits: V - 0 * I is V).
-    let fixed_voltage = match p.supply {
+    // The supply voltage at `row` (the logged one where followed) while `total_a` flows. A
+    // supply whose voltage does not move with the load (a bench without source resistance)
+    // gives its no-load voltage, which leaves the motors' current out of the next substep's
+    // dependency chain (the same bits: V - 0 * I is V).
+    let fixed_voltage = matches!(
+        p.supply,
         crate::battery::SupplyParams::Bench {
             source_resistance_ohm: 0.0,
             ..
-        } => Some(supply.voltage_v(&p.supply, 0.0)),
-        _ => None,
+        }
+    );
+    let voltage_at = |supply: &SupplyState, row: usize, total_a: f64| match bat_v {
+        Some(v) => v[row],
+        None if fixed_voltage => no_load_v,
+        None => supply.voltage_v(&p.supply, total_a),
     };
     let mut steps = Vec::new();
-    let mut last_alpha = (f64::NAN.to_bits(), 0.0);
+    let mut spinup = LagFactor::new(p.motors.spinup_tau_s);
     for r in 0..rows {
         if r > 0 {
             let dt = t_s[r] - t_s[r - 1];
@@ -256,11 +263,7 @@ pub fn replay_logged(
             let settle_s = SETTLE_TIME_CONSTANTS * p.motors.spinup_tau_s;
             substeps_into(&mut steps, dt, lead_from, settle_s);
             for &(a, b, h) in &steps {
-                let voltage = match (bat_v, fixed_voltage) {
-                    (Some(v), _) => v[r - 1],
-                    (None, Some(v)) => v,
-                    (None, None) => supply.voltage_v(&p.supply, total_a),
-                };
+                let voltage = voltage_at(&supply, r - 1, total_a);
                 // A substep that straddles the switch is split at it.
                 let parts = [
                     (r - 1, (lead_from.min(b) - a).max(0.0)),
@@ -269,15 +272,7 @@ pub fn replay_logged(
                 // Every motor steps by the same lengths: one lag factor each, none for a part
                 // of no length (it steps no motor), and the last one kept for a length seen
                 // again (the substeps of an interval are alike).
-                let alphas = parts.map(|(_, len)| {
-                    if len <= 0.0 {
-                        return 0.0;
-                    }
-                    if len.to_bits() != last_alpha.0 {
-                        last_alpha = (len.to_bits(), p.motors.spinup_alpha(len));
-                    }
-                    last_alpha.1
-                });
+                let alphas = parts.map(|(_, len)| if len > 0.0 { spinup.of(len) } else { 0.0 });
                 total_a = avionics;
                 for (m, st) in motors.iter_mut().enumerate() {
                     for (&(row, len), &alpha) in parts.iter().zip(&alphas) {
@@ -288,11 +283,13 @@ pub fn replay_logged(
                                     TargetSpeed::new(&p.motors, &constants[m], cmd, voltage);
                             }
                             let target = &targets[m];
-                            // What `MotorState::step_electrical_with` does, with the target
-                            // kept.
-                            st.speed_rad_s += (target.speed_rad_s - st.speed_rad_s) * alpha;
-                            st.current_a =
-                                constants[m].current(&p.motors, st.speed_rad_s, target.driven);
+                            st.step_toward(
+                                &p.motors,
+                                &constants[m],
+                                target.speed_rad_s,
+                                target.driven,
+                                alpha,
+                            );
                             acting[m] = row;
                         }
                     }
@@ -308,11 +305,7 @@ pub fn replay_logged(
                 }
             }
         }
-        let voltage = match (bat_v, fixed_voltage) {
-            (Some(v), _) => v[r],
-            (None, Some(v)) => v,
-            (None, None) => supply.voltage_v(&p.supply, total_a),
-        };
+        let voltage = voltage_at(&supply, r, total_a);
         let electrical = Electrical {
             total_a: supply_a(r, total_a),
             voltage_v: voltage,

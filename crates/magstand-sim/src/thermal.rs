@@ -7,6 +7,7 @@
 use serde::{Deserialize, Serialize};
 
 use crate::error::{Checker, SimError};
+use crate::lag::LagFactor;
 use magstand_core::Vec3;
 
 /// Thermal parameters.
@@ -85,7 +86,7 @@ impl ThermalState {
 
     /// Advances by `dt_s` while `power_w` is drawn (exact first-order step).
     pub fn step(&mut self, p: &ThermalParams, power_w: f64, dt_s: f64) {
-        self.step_by(p, power_w, step_factor(p, dt_s));
+        self.step_by(p, power_w, crate::lag::lag_factor(dt_s, p.tau_s));
     }
 
     /// [`step`](Self::step) with its factor `1 - exp(-dt_s / tau_s)` given.
@@ -93,11 +94,6 @@ impl ThermalState {
         let target = p.ambient_c + p.rise_c_per_w * power_w;
         self.temp_c += (target - self.temp_c) * factor;
     }
-}
-
-/// The fraction of the way to its target temperature the board covers in `dt_s`.
-fn step_factor(p: &ThermalParams, dt_s: f64) -> f64 {
-    1.0 - (-dt_s / p.tau_s).exp()
 }
 
 /// The trace column of the board temperature, °C.
@@ -109,9 +105,9 @@ pub const TEMP_C: &str = "temp_c";
 pub struct ThermalModule {
     params: ThermalParams,
     state: ThermalState,
-    /// The last step length (its bits) and its factor: a simulation steps by one length a
-    /// thousand times a second, and the exponential was most of a step's cost.
-    last_step: (u64, f64),
+    /// The heating's lag factor, kept for the step length (a simulation steps by one length
+    /// a thousand times a second).
+    factor: LagFactor,
 }
 
 impl ThermalModule {
@@ -120,7 +116,7 @@ impl ThermalModule {
         Self {
             params: p.clone(),
             state: ThermalState::new(p),
-            last_step: (0f64.to_bits(), 0.0),
+            factor: LagFactor::new(p.tau_s),
         }
     }
 }
@@ -133,10 +129,7 @@ impl crate::stand_module::StandModule for ThermalModule {
         self.params.offset_ut(self.state.temp_c)
     }
     fn step(&mut self, e: crate::stand_module::Electrical, dt_s: f64) {
-        if self.last_step.0 != dt_s.to_bits() {
-            self.last_step = (dt_s.to_bits(), step_factor(&self.params, dt_s));
-        }
-        let factor = self.last_step.1;
+        let factor = self.factor.of(dt_s);
         self.state
             .step_by(&self.params, e.voltage_v * e.total_a, factor);
     }

@@ -122,8 +122,7 @@ impl Effect for BatterySag {
         };
         // Relative to the nominal supply's no-load voltage, a constant of the model (not of
         // the recording), so that a model file predicts a new recording with the same column.
-        let reference_v =
-            magstand_sim::battery::SupplyState::default().voltage_v(&ctx.nominal.supply, 0.0);
+        let reference_v = ctx.nominal.supply.no_load_voltage_v();
         if !(reference_v > 0.0) {
             return Vec::new();
         }

@@ -213,7 +213,7 @@ fn unexplained(
             .map(|&a| {
                 format!(
                     "{} {:.3} (p {:.1e})",
-                    ["x", "y", "z"][a],
+                    magstand_core::AXES[a],
                     share(a),
                     tests[a].p
                 )
