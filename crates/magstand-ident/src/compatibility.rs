@@ -114,8 +114,14 @@ pub fn compatibility(
             top,
         )
     };
-    let ardupilot = if updates >= crate::baseline::COMPASSMOT_CONVERGED_UPDATES {
-        Some(line(Family::ArduPilot)?)
+    // The two lines are independent fits: one per core.
+    let converged = updates >= crate::baseline::COMPASSMOT_CONVERGED_UPDATES;
+    let (px4, ardupilot) = rayon::join(
+        || line(Family::Px4),
+        || converged.then(|| line(Family::ArduPilot)),
+    );
+    let ardupilot = if let Some(figures) = ardupilot {
+        Some(figures?)
     } else {
         withheld.push(format!(
             "compassmot: ArduPilot's running average would update on only {updates} rows (throttle above 0{}); starting from zero it needs {} updates to hold less than 5 % of its start",
@@ -130,7 +136,7 @@ pub fn compatibility(
     };
     Ok(Compatibility {
         model: figures(model, top)?,
-        px4: line(Family::Px4)?,
+        px4: px4?,
         ardupilot,
         withheld,
     })

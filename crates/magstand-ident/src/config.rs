@@ -5,7 +5,7 @@ use magstand_core::{Recording, Vec3};
 
 use crate::baseline;
 use crate::dataset::{Dataset, HOLDOUT_EVERY, InputKind, STRUCTURE_SCORE_BLOCK};
-use crate::local_linear::{self, Estimation};
+use crate::local_linear::{self, Estimation, NetEquations};
 use crate::model::{FitSummary, IdentifiedRange, Model, Structure};
 use crate::noise_model::SdModel;
 use crate::structure;
@@ -324,7 +324,7 @@ impl ValidFitConfig {
 
     /// One structure fitted on `rows`, with inverse-variance reweighting when configured.
     /// Returns the structure, and with `want_sd` (or when reweighting) the noise model of its
-    /// residuals and the residuals themselves.
+    /// residuals and the residuals themselves; and what a fit on more rows can reuse.
     fn fit_rows(
         &self,
         data: &Dataset,
@@ -341,7 +341,7 @@ impl ValidFitConfig {
         let fit_with = |rows: &(dyn Fn(usize) -> bool + Sync),
                         weight: &(dyn Fn(usize) -> Vec3 + Sync),
                         weight_at: &dyn Fn(f64) -> Vec3|
-         -> Result<Structure, IdentError> {
+         -> Result<(Structure, Option<NetEquations>), IdentError> {
             let (part, estimation) = match &self.0.family {
                 Family::LocalLinear {
                     centers,
@@ -375,13 +375,13 @@ impl ValidFitConfig {
                         *estimation,
                     )
                 }
-                Family::ArduPilot => return baseline::ardupilot(data, rows),
-                Family::Px4 => return baseline::polynomial(data, 1, false, rows),
-                Family::Cubic => return baseline::polynomial(data, 3, true, rows),
+                Family::ArduPilot => return Ok((baseline::ardupilot(data, rows)?, None)),
+                Family::Px4 => return Ok((baseline::polynomial(data, 1, false, rows)?, None)),
+                Family::Cubic => return Ok((baseline::polynomial(data, 3, true, rows)?, None)),
             };
-            Ok(Structure::LocalLinear(local_linear::fit(
-                data, &part, estimation, rows, weight,
-            )?))
+            let (net, equations) =
+                local_linear::fit_keeping_equations(data, &part, estimation, rows, weight)?;
+            Ok((Structure::LocalLinear(net), equations))
         };
         let model_of =
             |s: &Structure| Model::new("", data.spec.clone(), data.reference_ut, s.clone(), None);
@@ -412,52 +412,153 @@ impl ValidFitConfig {
                 (sd, Some(r))
             }
         };
-        let inverse_variance = |noise: &SdModel, u: f64| noise.sd(u).map(|s| 1.0 / (s * s));
-        let mut s = fit_with(on, &unit, &|_| Vec3::repeat(1.0))?;
+        let (mut s, mut equations) = fit_with(on, &unit, &|_| Vec3::repeat(1.0))?;
+        // The noise model that weighted the fit kept (none: unit weights).
+        let mut weights_sd: Option<SdModel> = None;
+        let reuse = |s: &Structure, weights: Option<SdModel>, equations| {
+            Some(TrainingFit {
+                structure: s.clone(),
+                weights,
+                equations,
+            })
+        };
         // The noise model costs a pass over the data: only when it weights or is kept.
         if !reweight && !want_sd {
-            return Ok((s, None, None));
+            let training = reuse(&s, None, equations);
+            return Ok(RowsFit {
+                structure: s,
+                sd: None,
+                residuals: None,
+                training,
+            });
         }
         let (mut sd, mut r) = noise_of(&s);
         if reweight {
             // Two reweighting passes: the second noise model comes from residuals of a fit that
-            // no longer over-follows the noisiest samples.
-            for _ in 0..2 {
+            // no longer over-follows the noisiest samples. The structure is chosen again in the
+            // first (the unweighted choice splits where the noise is largest); the second
+            // refits its coefficients only: its weights differ from the first's by what one
+            // weighted fit changes in the noise model, and a search costs several fits.
+            for pass in 0..2 {
                 let Some(noise) = sd.clone() else { break };
-                let w_at = |u: f64| inverse_variance(&noise, u);
+                let w_at = |u: f64| weights_of(Some(&noise), u);
                 let w = |k: usize| w_at(data.u[k]);
-                s = fit_with(on, &w, &w_at)?;
+                (s, equations) = match (&s, estimation) {
+                    (Structure::LocalLinear(net), Some(estimation)) if pass > 0 => {
+                        let (net, equations) = local_linear::fit_keeping_equations(
+                            data,
+                            &net.partition,
+                            estimation,
+                            on,
+                            &w,
+                        )?;
+                        (Structure::LocalLinear(net), equations)
+                    }
+                    _ => fit_with(on, &w, &w_at)?,
+                };
+                weights_sd = Some(noise.clone());
                 (sd, r) = noise_of(&s);
             }
         }
         if sampled {
             // The structure stays as the spread rows chose it; its coefficients take every row.
             if let (Structure::LocalLinear(net), Some(estimation)) = (&s, estimation) {
-                let w = |k: usize| {
-                    sd.as_ref().map_or(Vec3::repeat(1.0), |noise| {
-                        inverse_variance(noise, data.u[k])
-                    })
-                };
-                let net = local_linear::fit(data, &net.partition, estimation, rows, &w)?;
-                s = Structure::LocalLinear(net);
+                let w = |k: usize| weights_of(sd.as_ref(), data.u[k]);
+                let every;
+                (every, equations) = local_linear::fit_keeping_equations(
+                    data,
+                    &net.partition,
+                    estimation,
+                    rows,
+                    &w,
+                )?;
+                s = Structure::LocalLinear(every);
+                weights_sd = sd.clone();
+            }
+            if !want_sd {
+                // A training fit: its caller takes its residuals with the identified range set.
+                let training = reuse(&s, weights_sd, equations);
+                return Ok(RowsFit {
+                    structure: s,
+                    sd: None,
+                    residuals: None,
+                    training,
+                });
             }
             let (all_sd, all_r) = residual_sd(&s);
             (sd, r) = (all_sd, Some(all_r));
         }
-        Ok((s, sd, r))
+        let training = reuse(&s, weights_sd, equations);
+        Ok(RowsFit {
+            structure: s,
+            sd,
+            residuals: r,
+            training,
+        })
+    }
+
+    /// The fit on every row that reuses a training fit on fewer rows: its structure and noise
+    /// weights are kept, and its normal equations take the rows it left out (`left_out`), so
+    /// the rows it summed are not summed again. `None` when the training fit left nothing to
+    /// reuse (a polynomial).
+    fn refit_every_row(
+        &self,
+        data: &Dataset,
+        training: &TrainingFit,
+        left_out: &(dyn Fn(usize) -> bool + Sync),
+    ) -> Option<Result<RowsFit, IdentError>> {
+        let Structure::LocalLinear(net) = &training.structure else {
+            return None;
+        };
+        let estimation = match &self.0.family {
+            Family::LocalLinear { estimation, .. } | Family::Automatic { estimation, .. } => {
+                *estimation
+            }
+            _ => return None,
+        };
+        let w = |k: usize| weights_of(training.weights.as_ref(), data.u[k]);
+        let fitted = match &training.equations {
+            Some(equations) => {
+                let mut equations = equations.clone();
+                equations.add_rows(data, left_out, &w);
+                equations.solve(data)
+            }
+            None => local_linear::fit(data, &net.partition, estimation, &|_| true, &w),
+        };
+        Some(fitted.map(|net| {
+            let s = Structure::LocalLinear(net);
+            let r = Model::new("", data.spec.clone(), data.reference_ut, s.clone(), None)
+                .residuals(data);
+            RowsFit {
+                sd: SdModel::fit(&data.u, &r, |_| true, self.0.sd_knots),
+                residuals: Some(r),
+                structure: s,
+                training: None,
+            }
+        }))
     }
 }
 
+/// Inverse-variance weights per axis at normalized input `u` under `noise` (unit weights
+/// without one).
+fn weights_of(noise: Option<&SdModel>, u: f64) -> Vec3 {
+    noise.map_or(Vec3::repeat(1.0), |noise| {
+        noise.sd(u).map(|s| 1.0 / (s * s))
+    })
+}
+
 /// What a fit leaves on the rows it held out: the evidence a comparison of models rests on.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone)]
 pub struct HeldOut {
     /// Whether each row was held out of the training fit ([`Dataset::holdout_mask`]).
     pub mask: Vec<bool>,
-    /// Residual of the training fit (fitted without the held-out rows) at every row, µT; only
-    /// the held-out rows' are out of sample.
+    /// Residual of the training fit (fitted without the held-out rows) at each held-out row,
+    /// µT; zero at the rows the training fit saw (not computed: they are not evidence).
     pub residuals_ut: Vec<Vec3>,
     /// Parameters of the training fit: the model those residuals judge.
     pub parameters: usize,
+    /// What the fit on every row reuses.
+    training: Option<TrainingFit>,
 }
 
 impl Fit for ValidFitConfig {
@@ -485,8 +586,14 @@ impl ValidFitConfig {
         let holdout = data.holdout_mask();
         let select = self.structure_score_rows(data);
         let train = |k: usize| !holdout[k];
-        let (s_train, _, _) = self.fit_rows(data, &train, &select, false)?;
-        let mut train_model = Model::new("", data.spec.clone(), data.reference_ut, s_train, None);
+        let fitted = self.fit_rows(data, &train, &select, false)?;
+        let mut train_model = Model::new(
+            "",
+            data.spec.clone(),
+            data.reference_ut,
+            fitted.structure,
+            None,
+        );
         // Held-out blocks beyond the training rows' range see the continuation a user's later
         // rows would.
         let train_u: Vec<f64> = (0..data.len())
@@ -495,11 +602,13 @@ impl ValidFitConfig {
             .collect();
         train_model.identified =
             IdentifiedRange::of(&train_u, data.spec.normalize(data.spec.off_raw));
-        let residuals_ut = train_model.residuals(data);
+        // Only the held-out rows' residuals are evidence: the others are not computed.
+        let residuals_ut = train_model.residuals_at(data, &|k| holdout[k]);
         Ok(HeldOut {
             mask: holdout,
             residuals_ut,
             parameters: train_model.parameter_count(),
+            training: fitted.training,
         })
     }
 
@@ -509,7 +618,18 @@ impl ValidFitConfig {
     /// fit.
     pub fn fit_every_row(&self, data: &Dataset) -> Result<(Model, Vec<Vec3>), IdentError> {
         let select = self.structure_score_rows(data);
-        let (structure, sd, residuals) = self.fit_rows(data, &|_| true, &select, true)?;
+        let fitted = self.fit_rows(data, &|_| true, &select, true)?;
+        Ok(self.model_of(data, fitted))
+    }
+
+    /// The model of a fit on every row, and its residuals.
+    fn model_of(&self, data: &Dataset, fitted: RowsFit) -> (Model, Vec<Vec3>) {
+        let RowsFit {
+            structure,
+            sd,
+            residuals,
+            ..
+        } = fitted;
         let mut model = Model::new(
             &self.method_name(),
             data.spec.clone(),
@@ -521,7 +641,7 @@ impl ValidFitConfig {
         // with it the continuation beyond) is set afterwards, and changes nothing inside it.
         let r = residuals.unwrap_or_else(|| model.residuals(data));
         model.identified = IdentifiedRange::of(&data.u, data.spec.normalize(data.spec.off_raw));
-        Ok((model, r))
+        (model, r)
     }
 
     /// Rows that score a structure search: their own blocks, never the held-out ones.
@@ -534,7 +654,17 @@ impl ValidFitConfig {
     /// with its summary's held-out RMSE from `held`, the training fit of the same data.
     pub fn fit_judged(&self, data: &Dataset, held: &HeldOut) -> Result<Model, IdentError> {
         let (holdout, r_train) = (&held.mask, &held.residuals_ut);
-        let (mut model, r) = self.fit_every_row(data)?;
+        // The structure the held-out rows judged, fitted on every row; a fit without one to
+        // reuse (a polynomial) is fitted anew.
+        let left_out = |k: usize| holdout[k];
+        let refit = held
+            .training
+            .as_ref()
+            .and_then(|t| self.refit_every_row(data, t, &left_out));
+        let (mut model, r) = match refit {
+            Some(fitted) => self.model_of(data, fitted?),
+            None => self.fit_every_row(data)?,
+        };
         let holdout_rows = holdout.iter().filter(|h| **h).count();
         let rms = |rows: &mut dyn Iterator<Item = Vec3>, n: usize| -> [f64; 3] {
             let s = rows.fold(Vec3::zeros(), |acc, v| acc + v.component_mul(&v));
@@ -578,13 +708,116 @@ impl ValidFitConfig {
     }
 }
 
-/// What a fit on chosen rows gives: the structure, the noise model when asked for, and the
-/// residuals of the rows when asked for.
-type RowsFit = (Structure, Option<SdModel>, Option<Vec<Vec3>>);
+/// What a fit on chosen rows gives.
+struct RowsFit {
+    /// The structure fitted.
+    structure: Structure,
+    /// The noise model of its residuals, when asked for.
+    sd: Option<SdModel>,
+    /// Its residuals at every row, when asked for.
+    residuals: Option<Vec<Vec3>>,
+    /// What a fit on more rows can reuse.
+    training: Option<TrainingFit>,
+}
+
+/// What a training fit keeps for the fit on every row ([`ValidFitConfig::fit_judged`]): the
+/// structure it chose, the noise model that weighted its coefficients, and their normal
+/// equations where they were summed row by row. The model kept is then the structure the
+/// held-out error judged, fitted on every row with the same weights.
+#[derive(Debug, Clone)]
+struct TrainingFit {
+    structure: Structure,
+    weights: Option<SdModel>,
+    equations: Option<NetEquations>,
+}
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A slow ramp whose input never repeats, a curved deviation and noise growing with the
+    /// input: the inputs are not grouped, so the training fit keeps its normal equations.
+    fn ramp() -> Dataset {
+        let mut rec = Recording {
+            thr: vec![vec![]],
+            overall_only: true,
+            ..Default::default()
+        };
+        for k in 0..6000 {
+            let u = if k < 500 {
+                0.0
+            } else {
+                (k - 500) as f64 / 5500.0
+            };
+            rec.t_s.push(k as f64 * 0.01);
+            rec.thr[0].push(u);
+            let noise = (0.05 + 0.4 * u) * ((k as f64) * 12.9898).sin();
+            rec.mag_ut.push(
+                Vec3::new(20.0 + 6.0 * u * u, 1.0 - 3.0 * u, 45.0 + 9.0 * u.powi(3))
+                    + Vec3::repeat(noise),
+            );
+        }
+        Dataset::from_recording(&rec, InputKind::Throttle, "ramp").unwrap()
+    }
+
+    #[test]
+    fn the_model_kept_is_the_judged_structure_fitted_on_every_row() {
+        let data = ramp();
+        assert!(
+            data.group_index().is_none(),
+            "a ramp's inputs do not repeat"
+        );
+        let cfg = FitConfig::automatic().check().unwrap();
+        let held = cfg.held_out(&data).unwrap();
+        let training = held
+            .training
+            .as_ref()
+            .expect("a local linear fit keeps its training");
+        assert!(
+            training.equations.is_some(),
+            "rows summed one by one are kept"
+        );
+        assert!(training.weights.is_some(), "the automatic fit is weighted");
+        let Structure::LocalLinear(judged) = &training.structure else {
+            panic!("a local linear structure")
+        };
+        let model = cfg.fit_judged(&data, &held).unwrap();
+        let Structure::LocalLinear(kept) = &model.structure else {
+            panic!("a local linear structure")
+        };
+        assert_eq!(
+            kept.partition, judged.partition,
+            "the structure judged is kept"
+        );
+        // The training rows' equations plus the held-out rows' are the fit on every row.
+        let Family::Automatic { estimation, .. } = cfg.config().family else {
+            panic!("the automatic family")
+        };
+        let w = |k: usize| weights_of(training.weights.as_ref(), data.u[k]);
+        let direct = local_linear::fit(&data, &kept.partition, estimation, &|_| true, &w).unwrap();
+        for a in 0..3 {
+            for (m, (x, y)) in kept.coefficients[a]
+                .iter()
+                .zip(&direct.coefficients[a])
+                .enumerate()
+            {
+                for (c, d) in x.iter().zip(y) {
+                    assert!(
+                        (c - d).abs() <= 1e-9 * (1.0 + d.abs()),
+                        "axis {a} model {m}: kept {x:?}, fitted on every row {y:?}"
+                    );
+                }
+            }
+        }
+        // The held-out RMSE is the training fit's on the held-out rows, and those rows' only.
+        let summary = model.summary.as_ref().unwrap();
+        assert!(summary.holdout_rows > 0 && summary.holdout_rows < data.len());
+        for (k, r) in held.residuals_ut.iter().enumerate() {
+            if !held.mask[k] {
+                assert_eq!(*r, Vec3::zeros(), "row {k} was not held out");
+            }
+        }
+    }
 
     #[test]
     fn a_structure_stated_by_nothing_is_the_papers() {

@@ -139,6 +139,9 @@ pub struct Dataset {
     /// Rows of equal input and regressors, indexed on first use ([`crate::row_groups`]); the
     /// rows' `u` and `x` must not change after it.
     groups: std::sync::OnceLock<Option<std::sync::Arc<crate::row_groups::GroupIndex>>>,
+    /// The identification split of the rows' times, made on first use; `t_s` must not change
+    /// after it.
+    split: std::sync::OnceLock<magstand_core::held_out::Split>,
 }
 
 /// A row counts as motors-off when every command is at most this.
@@ -291,6 +294,7 @@ impl Dataset {
             reference_ut,
             off_rows: off.len(),
             groups: std::sync::OnceLock::new(),
+            split: std::sync::OnceLock::new(),
         })
     }
 
@@ -324,12 +328,17 @@ impl Dataset {
     /// Index of the time block of each row: blocks of 1 s, or shorter so that a recording has
     /// at least 50 of them.
     pub fn time_blocks(&self) -> Vec<u64> {
-        time_blocks_of(&self.t_s)
+        self.split().block.iter().map(|&b| b as u64).collect()
+    }
+
+    /// The identification split of the rows ([`identification_split`]), made once.
+    fn split(&self) -> &magstand_core::held_out::Split {
+        self.split.get_or_init(|| identification_split(&self.t_s))
     }
 
     /// Splits rows into identification and held-out sets by time blocks: every fifth block is
     /// held out, so that held-out samples are not neighbours of fitted ones.
     pub fn holdout_mask(&self) -> Vec<bool> {
-        identification_split(&self.t_s).holdout
+        self.split().holdout.clone()
     }
 }

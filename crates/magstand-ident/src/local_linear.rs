@@ -99,19 +99,80 @@ pub fn fit(
         // the memberships computed once per distinct input.
         return crate::row_groups::Groups::of(data, use_row, weight).fit(partition, estimation);
     }
-    let rows_of = |range: std::ops::Range<usize>| {
-        range
-            .filter(|&k| use_row(k))
-            .map(|k| (data.u[k], data.regressors(k), data.y[k], weight(k)))
-    };
-    fit_weighted_rows(
-        data,
-        partition,
-        estimation,
-        data.len(),
-        FIT_CHUNK_ROWS,
-        rows_of,
-    )
+    let equations = NetEquations::of_rows(data, partition, estimation, use_row, weight);
+    equations.solve(data)
+}
+
+/// Fits as [`fit`] does, and keeps the normal equations where the rows were summed one by one
+/// (inputs that do not repeat): rows added to them later ([`NetEquations::add_rows`]) then
+/// give the fit on both sets of rows without a second pass over the first.
+pub(crate) fn fit_keeping_equations(
+    data: &Dataset,
+    partition: &RbfPartition,
+    estimation: Estimation,
+    use_row: &(dyn Fn(usize) -> bool + Sync),
+    weight: &(dyn Fn(usize) -> Vec3 + Sync),
+) -> Result<(LocalLinearNet, Option<NetEquations>), IdentError> {
+    if data.group_index().is_some() {
+        return Ok((fit(data, partition, estimation, use_row, weight)?, None));
+    }
+    let equations = NetEquations::of_rows(data, partition, estimation, use_row, weight);
+    Ok((equations.solve(data)?, Some(equations)))
+}
+
+/// A network's normal equations over some rows, before the solve.
+#[derive(Debug, Clone)]
+pub(crate) struct NetEquations {
+    partition: RbfPartition,
+    estimation: Estimation,
+    sums: Accumulated,
+}
+
+impl NetEquations {
+    /// The equations of the rows where `use_row` is true, row `k` weighted by `weight(k)`,
+    /// summed in fixed chunks on every core (see [`fit_weighted_rows`]).
+    fn of_rows(
+        data: &Dataset,
+        partition: &RbfPartition,
+        estimation: Estimation,
+        use_row: &(dyn Fn(usize) -> bool + Sync),
+        weight: &(dyn Fn(usize) -> Vec3 + Sync),
+    ) -> Self {
+        let p = data.spec.regressor_count();
+        let sums = sum_in_chunks(
+            data.len(),
+            FIT_CHUNK_ROWS,
+            |range| {
+                let rows = range
+                    .filter(|&k| use_row(k))
+                    .map(|k| (data.u[k], data.regressors(k), data.y[k], weight(k)));
+                accumulate(p, partition, estimation, rows)
+            },
+            |sum, part| sum.merge(&part),
+        );
+        NetEquations {
+            partition: partition.clone(),
+            estimation,
+            sums,
+        }
+    }
+
+    /// Adds the rows where `use_row` is true (rows not already in the sums), weighted by
+    /// `weight`.
+    pub(crate) fn add_rows(
+        &mut self,
+        data: &Dataset,
+        use_row: &(dyn Fn(usize) -> bool + Sync),
+        weight: &(dyn Fn(usize) -> Vec3 + Sync),
+    ) {
+        let more = NetEquations::of_rows(data, &self.partition, self.estimation, use_row, weight);
+        self.sums.merge(&more.sums);
+    }
+
+    /// The network these equations give.
+    pub(crate) fn solve(&self, data: &Dataset) -> Result<LocalLinearNet, IdentError> {
+        solve(data, &self.partition, self.sums.clone())
+    }
 }
 
 /// Fits the network on `n` weighted rows `(u, regressors, y, weight per axis)`, which
@@ -167,6 +228,7 @@ pub(crate) fn sum_in_chunks<T: Send>(
 }
 
 /// The normal equations of a network's fit, before the solve.
+#[derive(Debug, Clone)]
 enum Accumulated {
     /// One set per local model and axis.
     Local(Vec<[NormalEquations; 3]>),

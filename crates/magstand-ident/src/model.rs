@@ -142,19 +142,16 @@ impl IdentifiedRange {
     /// The range of the identification inputs `u` (normalized, every row), with the
     /// quantiles of those above `off_u` (the motors running); `None` without finite inputs.
     pub fn of(u: &[f64], off_u: f64) -> Option<Self> {
-        let mut all: Vec<f64> = u.iter().copied().filter(|x| x.is_finite()).collect();
-        if all.is_empty() {
-            return None;
-        }
-        all.sort_unstable_by(f64::total_cmp);
+        let all: Vec<f64> = u.iter().copied().filter(|x| x.is_finite()).collect();
+        let lo = all.iter().copied().min_by(f64::total_cmp)?;
+        let hi = all.iter().copied().max_by(f64::total_cmp)?;
         let on: Vec<f64> = all.iter().copied().filter(|x| *x > off_u + 1e-9).collect();
-        let v = if on.is_empty() { &all } else { &on };
-        let q = |p: f64| v[((v.len() - 1) as f64 * p).round() as usize];
-        Some(Self {
-            lo: all[0],
-            hi: all[all.len() - 1],
-            quantiles: (0..=20).map(|k| q(k as f64 / 20.0)).collect(),
-        })
+        let mut v = if on.is_empty() { all } else { on };
+        let ranks: Vec<usize> = (0..=20)
+            .map(|k| ((v.len() - 1) as f64 * (k as f64 / 20.0)).round() as usize)
+            .collect();
+        let quantiles = order_statistics(&mut v, &ranks, 0);
+        Some(Self { lo, hi, quantiles })
     }
 
     /// Whether a normalized input lies inside the range widened on each side by `margin`
@@ -163,6 +160,30 @@ impl IdentifiedRange {
         let m = margin * (self.hi - self.lo) + 1e-9;
         u >= self.lo - m && u <= self.hi + m
     }
+}
+
+/// The values of ranks `ranks` (ascending, counted from `base`) of `v` as if it were sorted by
+/// [`f64::total_cmp`]: a selection around the middle rank, each half then taking its ranks,
+/// so a million inputs cost a few passes rather than a sort.
+fn order_statistics(v: &mut [f64], ranks: &[usize], base: usize) -> Vec<f64> {
+    if ranks.is_empty() {
+        return Vec::new();
+    }
+    let mid = ranks.len() / 2;
+    let at = ranks[mid] - base;
+    let (below, value, above) = v.select_nth_unstable_by(at, f64::total_cmp);
+    let value = *value;
+    // Ranks equal to the middle one (a short input repeats ranks) take its value.
+    let lower_end = ranks[..mid].partition_point(|&r| r < ranks[mid]);
+    let upper_start = mid + ranks[mid..].partition_point(|&r| r <= ranks[mid]);
+    let mut out = order_statistics(below, &ranks[..lower_end], base);
+    out.extend(std::iter::repeat_n(value, upper_start - lower_end));
+    out.extend(order_statistics(
+        above,
+        &ranks[upper_start..],
+        base + at + 1,
+    ));
+    out
 }
 
 /// Scratch space for repeated predictions.
@@ -599,5 +620,40 @@ impl Model {
             ));
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn order_statistics_are_the_sorted_values_at_their_ranks() {
+        // Repeats, ties, signed zeros and a short input (whose ranks repeat).
+        let mut state = 0x9e37_79b9_7f4a_7c15_u64;
+        let mut next = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state % 97) as f64 / 7.0 - 6.0
+        };
+        for n in [1usize, 2, 3, 5, 20, 21, 22, 1000] {
+            let mut v: Vec<f64> = (0..n).map(|_| next()).collect();
+            if n > 3 {
+                v[1] = -0.0;
+                v[2] = 0.0;
+            }
+            let mut sorted = v.clone();
+            sorted.sort_unstable_by(f64::total_cmp);
+            let ranks: Vec<usize> = (0..=20)
+                .map(|k| ((n - 1) as f64 * (k as f64 / 20.0)).round() as usize)
+                .collect();
+            let want: Vec<u64> = ranks.iter().map(|&r| sorted[r].to_bits()).collect();
+            let got: Vec<u64> = order_statistics(&mut v, &ranks, 0)
+                .iter()
+                .map(|x| x.to_bits())
+                .collect();
+            assert_eq!(got, want, "n = {n}, ranks {ranks:?}");
+        }
     }
 }
