@@ -195,21 +195,14 @@ pub fn choose_model(
             .map(|(m, r)| m - r)
             .collect::<Vec<Vec3>>())
     });
-    let contender = |family: FamilyId, fit: Result<&LocalFamily, &String>| Contender {
-        family,
-        parameters: fit.map_or(0, |f| f.held.parameters),
-        residuals_ut: fit
-            .map(|f| f.held.residuals_ut.clone())
-            .map_err(Clone::clone),
-    };
     let contenders = vec![
-        contender(FamilyId::Throttle, Ok(&throttle)),
-        contender(FamilyId::Current, current.as_ref()),
-        contender(FamilyId::Motors, motors.as_ref()),
+        local_contender(FamilyId::Throttle, Ok(&throttle)),
+        local_contender(FamilyId::Current, current.as_ref()),
+        local_contender(FamilyId::Motors, motors.as_ref()),
         Contender {
             family: FamilyId::Physics,
             parameters: physics.as_ref().map_or(0, |p| p.model.parameter_count()),
-            residuals_ut: physics_residuals,
+            residuals_ut: physics_residuals.map(Into::into),
         },
     ];
     let choice = choose(&contenders, mask, &blocks).ok_or_else(|| DiagnoseError::Recording {
@@ -237,6 +230,18 @@ pub fn choose_model(
         _ => with_choice(throttle)?,
     };
     Ok((chosen, choice))
+}
+
+/// A local linear family as the choice judges it: its training fit's held-out residuals,
+/// borrowed.
+fn local_contender<'a>(family: FamilyId, fit: Result<&'a LocalFamily, &String>) -> Contender<'a> {
+    Contender {
+        family,
+        parameters: fit.map_or(0, |f| f.held.parameters),
+        residuals_ut: fit
+            .map(|f| f.held.residuals_ut.as_slice().into())
+            .map_err(Clone::clone),
+    }
 }
 
 /// A local linear family's training fit, with what its fit on every row needs.

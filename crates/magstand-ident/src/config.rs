@@ -596,12 +596,8 @@ impl ValidFitConfig {
         );
         // Held-out blocks beyond the training rows' range see the continuation a user's later
         // rows would.
-        let train_u: Vec<f64> = (0..data.len())
-            .filter(|&k| train(k))
-            .map(|k| data.u[k])
-            .collect();
         train_model.identified =
-            IdentifiedRange::of(&train_u, data.spec.normalize(data.spec.off_raw));
+            IdentifiedRange::of_rows(&data.u, train, data.spec.normalize(data.spec.off_raw));
         // Only the held-out rows' residuals are evidence: the others are not computed.
         let residuals_ut = train_model.residuals_at(data, &|k| holdout[k]);
         Ok(HeldOut {
@@ -645,9 +641,9 @@ impl ValidFitConfig {
     }
 
     /// Rows that score a structure search: their own blocks, never the held-out ones.
-    fn structure_score_rows(&self, data: &Dataset) -> impl Fn(usize) -> bool + Sync {
-        let blocks = data.time_blocks();
-        move |k: usize| blocks[k] % HOLDOUT_EVERY as u64 == STRUCTURE_SCORE_BLOCK as u64
+    fn structure_score_rows<'d>(&self, data: &'d Dataset) -> impl Fn(usize) -> bool + Sync + 'd {
+        let blocks = &data.split().block;
+        move |k: usize| blocks[k] % HOLDOUT_EVERY == STRUCTURE_SCORE_BLOCK
     }
 
     /// The second half of [`fit_holding_out`](Self::fit_holding_out): the fit on every row,

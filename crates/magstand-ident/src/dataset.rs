@@ -332,7 +332,7 @@ impl Dataset {
     }
 
     /// The identification split of the rows ([`identification_split`]), made once.
-    fn split(&self) -> &magstand_core::held_out::Split {
+    pub(crate) fn split(&self) -> &magstand_core::held_out::Split {
         self.split.get_or_init(|| identification_split(&self.t_s))
     }
 

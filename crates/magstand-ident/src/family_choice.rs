@@ -18,6 +18,8 @@
 //! fewer numbers to be wrong about on a recording it has not seen. Why this one: it is stated
 //! in the units of the evidence (held-out blocks), needs no tuning constant, and vanishes as
 //! the recording grows, so a family that is really better always wins on enough data.
+use std::borrow::Cow;
+
 use serde::{Deserialize, Serialize};
 
 use magstand_core::Vec3;
@@ -133,19 +135,23 @@ pub const RULE: &str = "lowest held-out error; a family with fewer parameters is
 /// A family to be judged: its id, size, and residuals at every row (only held-out rows are
 /// used), or why it has none.
 #[derive(Debug, Clone)]
-pub struct Contender {
+pub struct Contender<'r> {
     /// The family.
     pub family: FamilyId,
     /// Parameter count.
     pub parameters: usize,
     /// Residual at every row of the recording, µT, from a fit that did not see the held-out
     /// rows; or why the family was not tried or failed.
-    pub residuals_ut: Result<Vec<Vec3>, String>,
+    pub residuals_ut: Result<Cow<'r, [Vec3]>, String>,
 }
 
 /// Applies the rule to the contenders on the held-out rows (`holdout`), grouped in time blocks
 /// (`block`, one per row). Returns `None` when no contender has residuals.
-pub fn choose(contenders: &[Contender], holdout: &[bool], block: &[u64]) -> Option<FamilyChoice> {
+pub fn choose(
+    contenders: &[Contender<'_>],
+    holdout: &[bool],
+    block: &[u64],
+) -> Option<FamilyChoice> {
     // Held-out blocks in order of appearance, and each row's block index among them.
     let mut ids: Vec<u64> = Vec::new();
     let mut row_block: Vec<Option<usize>> = vec![None; holdout.len()];
@@ -305,7 +311,7 @@ pub fn choose(contenders: &[Contender], holdout: &[bool], block: &[u64]) -> Opti
 mod tests {
     use super::*;
 
-    fn contender(family: FamilyId, parameters: usize, sd: f64, seed: u64) -> Contender {
+    fn contender(family: FamilyId, parameters: usize, sd: f64, seed: u64) -> Contender<'static> {
         // Deterministic pseudo-noise of the given size.
         let mut x = seed;
         let mut next = || {
@@ -319,7 +325,8 @@ mod tests {
             parameters,
             residuals_ut: Ok((0..2000)
                 .map(|_| Vec3::new(next(), next(), next()))
-                .collect()),
+                .collect::<Vec<_>>()
+                .into()),
         }
     }
 
@@ -351,7 +358,7 @@ mod tests {
         small.family = FamilyId::Throttle;
         small.parameters = 10;
         if let Ok(r) = &mut small.residuals_ut {
-            r[4 * 40] *= 1.01;
+            r.to_mut()[4 * 40] *= 1.01;
         }
         let choice = choose(&[large, small], &h, &b).unwrap();
         assert_eq!(choice.chosen, FamilyId::Throttle, "{choice:?}");

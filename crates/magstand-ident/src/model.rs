@@ -142,11 +142,25 @@ impl IdentifiedRange {
     /// The range of the identification inputs `u` (normalized, every row), with the
     /// quantiles of those above `off_u` (the motors running); `None` without finite inputs.
     pub fn of(u: &[f64], off_u: f64) -> Option<Self> {
-        let all: Vec<f64> = u.iter().copied().filter(|x| x.is_finite()).collect();
-        let lo = all.iter().copied().min_by(f64::total_cmp)?;
-        let hi = all.iter().copied().max_by(f64::total_cmp)?;
-        let on: Vec<f64> = all.iter().copied().filter(|x| *x > off_u + 1e-9).collect();
-        let mut v = if on.is_empty() { all } else { on };
+        Self::of_rows(u, |_| true, off_u)
+    }
+
+    /// As [`IdentifiedRange::of`], of the rows `rows` selects.
+    pub fn of_rows(u: &[f64], rows: impl Fn(usize) -> bool, off_u: f64) -> Option<Self> {
+        let finite = || {
+            u.iter()
+                .enumerate()
+                .filter(|&(k, x)| x.is_finite() && rows(k))
+                .map(|(_, x)| *x)
+        };
+        let lo = finite().min_by(f64::total_cmp)?;
+        let hi = finite().max_by(f64::total_cmp)?;
+        let on: Vec<f64> = finite().filter(|x| *x > off_u + 1e-9).collect();
+        let mut v = if on.is_empty() {
+            finite().collect()
+        } else {
+            on
+        };
         let ranks: Vec<usize> = (0..=20)
             .map(|k| ((v.len() - 1) as f64 * (k as f64 / 20.0)).round() as usize)
             .collect();

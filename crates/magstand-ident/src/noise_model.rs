@@ -43,26 +43,36 @@ impl SdModel {
     pub fn fit(
         u: &[f64],
         r: &[Vec3],
-        use_row: impl Fn(usize) -> bool,
+        use_row: impl Fn(usize) -> bool + Sync,
         knots: usize,
     ) -> Option<Self> {
         let knots: Vec<f64> = (0..knots).map(|k| k as f64 / (knots - 1) as f64).collect();
         let n = knots.len();
-        let mut ne = NormalEquations::new(n, 3);
         let mut row = vec![0.0; n];
-        let mut h = [(0, 0.0); 2];
-        let mut used = 0usize;
-        for (i, (&ui, ri)) in u.iter().zip(r).enumerate() {
-            if !use_row(i) {
-                continue;
-            }
-            used += 1;
-            // A row touches at most two knots (ascending): only those enter the sums.
-            let m = hat(&knots, ui, &mut h);
-            let (cols, vals) = ([h[0].0, h[1].0], [h[0].1, h[1].1]);
-            let sq = ri.component_mul(ri);
-            ne.add_sparse(&cols[..m], &vals[..m], &[sq.x, sq.y, sq.z], 1.0);
-        }
+        // Summed in fixed chunks on every core, in chunk order: the sums do not depend on the
+        // thread count (and up to a chunk of rows is one pass in row order).
+        let (mut ne, used) = crate::local_linear::sum_in_chunks(
+            u.len().min(r.len()),
+            crate::local_linear::FIT_CHUNK_ROWS,
+            |range| {
+                let mut ne = NormalEquations::new(n, 3);
+                let mut h = [(0, 0.0); 2];
+                let mut used = 0usize;
+                for i in range.filter(|&i| use_row(i)) {
+                    used += 1;
+                    // A row touches at most two knots (ascending): only those enter the sums.
+                    let m = hat(&knots, u[i], &mut h);
+                    let (cols, vals) = ([h[0].0, h[1].0], [h[0].1, h[1].1]);
+                    let sq = r[i].component_mul(&r[i]);
+                    ne.add_sparse(&cols[..m], &vals[..m], &[sq.x, sq.y, sq.z], 1.0);
+                }
+                (ne, used)
+            },
+            |(sum, used), (part, more)| {
+                sum.merge(&part);
+                *used += more;
+            },
+        );
         if used < 2 {
             return None;
         }
