@@ -119,6 +119,53 @@ impl NormalEquations {
         self.rows += 1;
     }
 
+    /// Adds `r` rows at once whose regressors are zero except on the columns `first..first +
+    /// n`: `scaled` holds each row's `n` regressors times the square root of its weight, one
+    /// row after another, and `scaled_y` its `outputs` right-hand sides times the same root,
+    /// row after row; `weight_sum` and `rows` are their weights' sum and the number with
+    /// positive weight. The block's Gram matrix is one matrix product (BLAS-like, on the
+    /// `matrixmultiply` kernels nalgebra uses), several times faster than row by row for
+    /// blocks of more than a few columns.
+    pub fn add_scaled_rows(
+        &mut self,
+        first: usize,
+        n: usize,
+        scaled: &[f64],
+        scaled_y: &[f64],
+        weight_sum: f64,
+        rows: usize,
+    ) {
+        let r = scaled.len() / n.max(1);
+        let outputs = self.xty.ncols();
+        if r == 0 || n == 0 {
+            return;
+        }
+        // Column k of `z` is row k's regressors; `zt` is the same memory read as rows.
+        let z = nalgebra::DMatrixView::from_slice(&scaled[..r * n], n, r);
+        let zt = nalgebra::DMatrixView::from_slice_with_strides(&scaled[..r * n], r, n, n, 1);
+        let yt = nalgebra::DMatrixView::from_slice_with_strides(
+            &scaled_y[..r * outputs],
+            r,
+            outputs,
+            outputs,
+            1,
+        );
+        let mut gram = DMatrix::zeros(n, n);
+        gram.gemm(1.0, &z, &zt, 0.0);
+        let mut zy = DMatrix::zeros(n, outputs);
+        zy.gemm(1.0, &z, &yt, 0.0);
+        for i in 0..n {
+            for j in i..n {
+                self.xtx[(first + j, first + i)] += gram[(j, i)];
+            }
+            for k in 0..outputs {
+                self.xty[(first + i, k)] += zy[(i, k)];
+            }
+        }
+        self.weight_sum += weight_sum;
+        self.rows += rows;
+    }
+
     /// Adds another accumulator's sums (for parallel or chunked accumulation).
     pub fn merge(&mut self, other: &NormalEquations) {
         self.xtx += &other.xtx;
@@ -344,6 +391,49 @@ mod tests {
             sparse.xty
         );
         assert_eq!((full.rows(), sparse.rows()), (4, 4));
+    }
+
+    #[test]
+    fn rows_summed_as_one_matrix_product_give_the_row_by_row_sums() {
+        // 100 rows on the run of columns 2..9 of 12 (a local model window), two outputs, one
+        // row of zero weight: as one product of rows scaled by their weights' roots, the sums
+        // equal the row-by-row ones up to rounding.
+        let (p, first, n) = (12, 2, 7);
+        let (mut by_row, mut product) = (NormalEquations::new(p, 2), NormalEquations::new(p, 2));
+        let (mut scaled, mut scaled_y, mut weight_sum, mut rows) = (vec![], vec![], 0.0, 0);
+        for r in 0..100 {
+            let vals: Vec<f64> = (0..n)
+                .map(|j| ((r * 7 + j * 3) as f64 * 0.37).sin() + 0.1 * j as f64)
+                .collect();
+            let y = [((r as f64) * 0.11).cos(), r as f64 * 0.01 - 0.4];
+            let w = if r == 17 { 0.0 } else { 0.5 + (r % 5) as f64 };
+            let cols: Vec<usize> = (first..first + n).collect();
+            by_row.add_sparse(&cols, &vals, &y, w);
+            let root = w.sqrt();
+            scaled.extend(vals.iter().map(|v| root * v));
+            scaled_y.extend(y.iter().map(|v| root * v));
+            if w > 0.0 {
+                weight_sum += w;
+                rows += 1;
+            }
+        }
+        product.add_scaled_rows(first, n, &scaled, &scaled_y, weight_sum, rows);
+        assert_eq!(product.rows(), by_row.rows());
+        let close = |a: &DMatrix<f64>, b: &DMatrix<f64>| {
+            a.iter()
+                .zip(b.iter())
+                .all(|(x, y)| (x - y).abs() <= 1e-12 * (1.0 + y.abs()))
+        };
+        assert!(
+            close(&product.xtx, &by_row.xtx) && close(&product.xty, &by_row.xty),
+            "product {} {} vs rows {} {}",
+            product.xtx,
+            product.xty,
+            by_row.xtx,
+            by_row.xty
+        );
+        // The upper triangle stays empty: the sums live in the lower one.
+        assert_eq!(product.xtx[(first, first + 1)], 0.0);
     }
 
     #[test]

@@ -290,6 +290,7 @@ fn accumulate<'r>(
             // the model's own rows add, and skipping it makes a row cost the few models near
             // it rather than all of them.
             let (mut cols, mut z) = (Vec::with_capacity(m * p), Vec::with_capacity(m * p));
+            let mut batches = GramBatches::default();
             for (u, x, y, w) in rows {
                 partition.weights_into(u, &mut phi);
                 cols.clear();
@@ -300,12 +301,125 @@ fn accumulate<'r>(
                         z.push(phi[i] * x[j]);
                     }
                 }
-                for a in 0..3 {
-                    ne[a].add_sparse(&cols, &z, &[y[a]], w[a]);
+                // A run of columns wide enough for a matrix product waits for others of the
+                // same run; the rest are summed at once.
+                match (cols.first(), cols.last()) {
+                    (Some(&first), Some(&last))
+                        if last - first + 1 == cols.len() && cols.len() >= MIN_GRAM_COLUMNS =>
+                    {
+                        batches.push(first, &z, y, w, &mut ne);
+                    }
+                    _ => {
+                        for a in 0..3 {
+                            ne[a].add_sparse(&cols, &z, &[y[a]], w[a]);
+                        }
+                    }
                 }
             }
+            batches.finish(&mut ne);
             Accumulated::Global(Box::new(ne))
         }
+    }
+}
+
+/// Rows a batch of [`GramBatches`] holds before it is summed.
+const GRAM_BATCH_ROWS: usize = 64;
+
+/// Fewest nonzero columns for which a row waits for a batch: below it a matrix product gains
+/// nothing over summing the row at once.
+const MIN_GRAM_COLUMNS: usize = 6;
+
+/// Rows of a global fit waiting to be summed into its normal equations, one batch per run of
+/// nonzero columns (the local models near the rows' input): a full batch is summed as one
+/// matrix product per axis ([`NormalEquations::add_scaled_rows`]). The batches fill and are
+/// summed in an order fixed by the rows alone.
+#[derive(Default)]
+struct GramBatches {
+    batches: Vec<GramBatch>,
+    scaled: Vec<f64>,
+    scaled_y: Vec<f64>,
+}
+
+/// Rows sharing one run of nonzero columns.
+struct GramBatch {
+    first: usize,
+    n: usize,
+    z: Vec<f64>,
+    y: Vec<Vec3>,
+    w: Vec<Vec3>,
+}
+
+impl GramBatches {
+    /// Adds a row nonzero on the columns `first..first + z.len()`, summing its batch into `ne`
+    /// when full.
+    fn push(&mut self, first: usize, z: &[f64], y: Vec3, w: Vec3, ne: &mut [NormalEquations; 3]) {
+        let n = z.len();
+        let i = match self
+            .batches
+            .iter()
+            .position(|b| b.first == first && b.n == n)
+        {
+            Some(i) => i,
+            None => {
+                self.batches.push(GramBatch {
+                    first,
+                    n,
+                    z: Vec::with_capacity(GRAM_BATCH_ROWS * n),
+                    y: Vec::with_capacity(GRAM_BATCH_ROWS),
+                    w: Vec::with_capacity(GRAM_BATCH_ROWS),
+                });
+                self.batches.len() - 1
+            }
+        };
+        let batch = &mut self.batches[i];
+        batch.z.extend_from_slice(z);
+        batch.y.push(y);
+        batch.w.push(w);
+        if batch.y.len() == GRAM_BATCH_ROWS {
+            batch.sum_into(&mut self.scaled, &mut self.scaled_y, ne);
+        }
+    }
+
+    /// Sums every batch's remaining rows.
+    fn finish(mut self, ne: &mut [NormalEquations; 3]) {
+        for batch in &mut self.batches {
+            batch.sum_into(&mut self.scaled, &mut self.scaled_y, ne);
+        }
+    }
+}
+
+impl GramBatch {
+    /// Sums the batch's rows into `ne` (per axis, each row scaled by the root of its weight on
+    /// that axis; a row without positive weight there is left out) and empties it.
+    fn sum_into(
+        &mut self,
+        scaled: &mut Vec<f64>,
+        scaled_y: &mut Vec<f64>,
+        ne: &mut [NormalEquations; 3],
+    ) {
+        let n = self.n;
+        for a in 0..3 {
+            scaled.clear();
+            scaled_y.clear();
+            let (mut weight_sum, mut rows) = (0.0, 0);
+            for (k, (y, w)) in self.y.iter().zip(&self.w).enumerate() {
+                let root = if w[a] > 0.0 {
+                    weight_sum += w[a];
+                    rows += 1;
+                    w[a].sqrt()
+                } else {
+                    0.0
+                };
+                scaled.extend(self.z[k * n..(k + 1) * n].iter().map(|v| root * v));
+                scaled_y.push(root * y[a]);
+            }
+            if rows > 0 {
+                ne[a].add_scaled_rows(self.first, n, scaled, scaled_y, weight_sum, rows);
+            }
+        }
+        self.z.clear();
+        self.y.clear();
+        self.w.clear();
     }
 }
 
