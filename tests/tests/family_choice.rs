@@ -93,6 +93,11 @@ fn with_current_logged_the_choice_meets_the_goal_on_an_independent_stand() {
         chosen.family()
     );
     let by_family = truth_rmse_by_family(&ident, &valid, &truth);
+    // Printed for results/family-choice.md (`--nocapture`).
+    eprintln!(
+        "with bat_a: {} chosen, RMSE {e:?} µT against the truth; by family {by_family:?}",
+        chosen.family()
+    );
     assert_within_truths_best(&by_family, chosen.family());
 }
 
@@ -120,6 +125,11 @@ fn without_current_the_choice_follows_the_truth_ranking() {
     assert!(
         by_family.iter().all(|f| f.0 != "automatic-current"),
         "{by_family:?}"
+    );
+    let e = rmse_ut(&chosen.dist_column(&valid, "valid").unwrap(), &truth);
+    eprintln!(
+        "without bat_a: {} chosen, RMSE {e:?} µT against the truth; by family {by_family:?}",
+        chosen.family()
     );
     assert_within_truths_best(&by_family, chosen.family());
 }
