@@ -501,8 +501,9 @@ impl ValidFitConfig {
         })
     }
 
-    /// The fit on every row of the structure a training fit chose. On a long recording its
-    /// noise weights (settled on tens of thousands of spread rows) are kept and its normal
+    /// The fit on every row of the structure a training fit chose. Unweighted, or on a long
+    /// recording, its noise weights (none, or settled on tens of thousands of spread rows) are
+    /// kept and its normal
     /// equations take the rows it left out (`left_out`), so the rows it summed are not summed
     /// again. On a shorter one the noise model of a few hundred or thousand rows may not carry
     /// to the rows left out (a spline extrapolated to a tiny sd gives a row all the weight):
@@ -523,7 +524,9 @@ impl ValidFitConfig {
             }
             _ => return None,
         };
-        let (Some(equations), true) = (&training.equations, training.sampled) else {
+        // Unit weights carry to any row; estimated ones only from a long recording.
+        let trusted = training.weights.is_none() || training.sampled;
+        let (Some(equations), true) = (&training.equations, trusted) else {
             let stated = ValidFitConfig(FitConfig {
                 family: Family::LocalLinear {
                     centers: net.partition.centers().to_vec(),
@@ -851,6 +854,24 @@ mod tests {
                 };
                 assert_same_coefficients(kept, direct, "short recording");
             }
+            // An unweighted fit's equations carry to any row: the paper's fixed structure
+            // reuses them whatever the length.
+            let paper = FitConfig::paper().check().unwrap();
+            let Family::LocalLinear { estimation, .. } = paper.config().family else {
+                panic!("the paper's fixed structure")
+            };
+            let paper_held = paper.held_out(&data).unwrap();
+            let paper_training = paper_held.training.as_ref().unwrap();
+            assert!(paper_training.weights.is_none() && paper_training.equations.is_some());
+            let paper_model = paper.fit_judged(&data, &paper_held).unwrap();
+            let Structure::LocalLinear(paper_kept) = &paper_model.structure else {
+                panic!("a local linear structure")
+            };
+            let unit = |_: usize| Vec3::repeat(1.0);
+            let direct =
+                local_linear::fit(&data, &paper_kept.partition, estimation, &|_| true, &unit)
+                    .unwrap();
+            assert_same_coefficients(paper_kept, &direct, "paper fit");
             // The held-out RMSE is the training fit's on the held-out rows, and those rows'
             // only.
             let summary = model.summary.as_ref().unwrap();
