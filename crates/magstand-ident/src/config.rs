@@ -415,23 +415,21 @@ impl ValidFitConfig {
         let (mut s, mut equations) = fit_with(on, &unit, &|_| Vec3::repeat(1.0))?;
         // The noise model that weighted the fit kept (none: unit weights).
         let mut weights_sd: Option<SdModel> = None;
-        let reuse = |s: &Structure, weights: Option<SdModel>, equations| {
-            Some(TrainingFit {
+        // A fit with what a fit on more rows can reuse, before any noise model is kept.
+        let with_training = |s: Structure, weights: Option<SdModel>, equations| RowsFit {
+            training: Some(TrainingFit {
                 structure: s.clone(),
                 weights,
                 equations,
                 sampled,
-            })
+            }),
+            structure: s,
+            sd: None,
+            residuals: None,
         };
         // The noise model costs a pass over the data: only when it weights or is kept.
         if !reweight && !want_sd {
-            let training = reuse(&s, None, equations);
-            return Ok(RowsFit {
-                structure: s,
-                sd: None,
-                residuals: None,
-                training,
-            });
+            return Ok(with_training(s, None, equations));
         }
         let (mut sd, mut r) = noise_of(&s);
         if reweight {
@@ -481,23 +479,15 @@ impl ValidFitConfig {
             }
             if !want_sd {
                 // A training fit: its caller takes its residuals with the identified range set.
-                let training = reuse(&s, weights_sd, equations);
-                return Ok(RowsFit {
-                    structure: s,
-                    sd: None,
-                    residuals: None,
-                    training,
-                });
+                return Ok(with_training(s, weights_sd, equations));
             }
             let (all_sd, all_r) = residual_sd(&s);
             (sd, r) = (all_sd, Some(all_r));
         }
-        let training = reuse(&s, weights_sd, equations);
         Ok(RowsFit {
-            structure: s,
             sd,
             residuals: r,
-            training,
+            ..with_training(s, weights_sd, equations)
         })
     }
 
