@@ -1,7 +1,9 @@
 //! Search over a candidate's nonlinear parameters (a time constant, a delay, a play width):
-//! a grid over the allowed range, then golden-section refinement of each coordinate around
-//! the best grid point. The objective is a weighted chi-square, so the uncertainty of a
+//! a grid over the allowed range, then refinement of each coordinate around the best grid
+//! point by Brent's method (argmin). The objective is a weighted chi-square, so the uncertainty of a
 //! parameter follows from the curvature: `sd = sqrt(2 / f'')`, conditional on the others.
+use argmin::core::{CostFunction, Executor};
+use argmin::solver::brent::BrentOpt;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
@@ -59,11 +61,41 @@ pub(crate) struct Optimum {
     pub sd: Vec<Option<f64>>,
 }
 
-/// Golden-section steps around the best grid point: the bracket (at most two grid steps)
-/// shrinks to 0.618^10, under 1 % of it, finer than [`Search::at_bound`]'s 2 % of a step (so a
-/// minimum beyond the range is still seen at its edge) and than the curvature's step/50 is
-/// sensitive to. Each step is a replay of the recording for most parameters.
-const GOLDEN_ITERATIONS: usize = 10;
+/// Most steps of the refinement around the best grid point (each a replay of the recording
+/// for most parameters): at most 12 evaluations, what golden-section search needs to shrink
+/// the bracket (two grid steps) to 0.618^10 of it.
+const REFINE_ITERATIONS: u64 = 11;
+
+/// The refinement's accuracy as a fraction of a grid step: finer than [`Search::at_bound`]'s
+/// 2 % of a step (so a minimum beyond the range is still seen at its edge) and than the
+/// curvature's step/50 is sensitive to. Brent's method stops within three times this.
+const REFINE_TOLERANCE_STEPS: f64 = 0.003;
+
+/// The objective as argmin sees it.
+struct Objective<F>(F);
+
+impl<F: Fn(f64) -> f64> CostFunction for Objective<F> {
+    type Param = f64;
+    type Output = f64;
+    fn cost(&self, x: &f64) -> Result<f64, argmin::core::Error> {
+        Ok((self.0)(*x))
+    }
+}
+
+/// Brent's method (argmin's `BrentOpt`: parabolic steps through the three best points where
+/// the parabola is trusted, golden-section steps where it is not) on `[a, b]`, to within
+/// `tolerance`. A smooth chi-square reaches the tolerance in a few parabolic steps where
+/// golden-section search takes all of its steps; a rough one costs no more than golden
+/// section. Returns the best point and its value.
+fn brent(a: f64, b: f64, tolerance: f64, f: impl Fn(f64) -> f64) -> Option<(f64, f64)> {
+    let solver = BrentOpt::new(a, b).set_tolerance(f64::EPSILON.sqrt(), tolerance);
+    let result = Executor::new(Objective(f), solver)
+        .configure(|state| state.max_iters(REFINE_ITERATIONS))
+        .run()
+        .ok()?;
+    let state = result.state();
+    Some((state.best_param?, state.best_cost))
+}
 
 /// Minimizes `f` (None where the fit fails) over the searches.
 pub(crate) fn minimize(
@@ -92,7 +124,7 @@ pub(crate) fn minimize(
     // scan would have it. One parameter: its whole grid. Several: a grid along each in turn
     // from the middle of the others' ranges, the first one again at the end (a full factorial
     // of two parameters costs their product, and each point is a replay of the recording);
-    // the golden-section passes below then refine them together.
+    // the refinement passes below then refine them together.
     let grid_along = |k: usize, base: &[f64]| -> Vec<Vec<f64>> {
         (0..searches[k].points.max(2))
             .map(|i| {
@@ -129,7 +161,7 @@ pub(crate) fn minimize(
     if !best.is_finite() {
         return None;
     }
-    // Golden-section refinement, coordinate by coordinate.
+    // Refinement by Brent's method, coordinate by coordinate.
     let passes = if searches.len() > 1 { 2 } else { 1 };
     for _ in 0..passes {
         for k in 0..searches.len() {
@@ -141,10 +173,9 @@ pub(crate) fn minimize(
                 u[k] = x;
                 eval(&u)
             };
-            let (x, fx) =
-                magstand_core::bounded_search::golden_section(a, b, 0.0, GOLDEN_ITERATIONS, |x| {
-                    at(x, &best_u)
-                });
+            let Some((x, fx)) = brent(a, b, REFINE_TOLERANCE_STEPS * h, |x| at(x, &best_u)) else {
+                continue;
+            };
             if fx < best {
                 best = fx;
                 best_u[k] = x;
