@@ -26,7 +26,7 @@ pub struct Search {
 
 impl Search {
     /// Whether `v` lies at the edge of the range: within 2 % of one grid step of `lo` or `hi`
-    /// (where the grid and golden-section search end when the best value is beyond the range,
+    /// (where the grid and its refinement end when the best value is beyond the range,
     /// so the data do not determine it).
     pub fn at_bound(&self, v: f64) -> bool {
         let (u, lo, hi) = (
