@@ -182,7 +182,8 @@ pub fn choose_model(
     // The split every family is judged on: the identification fit's held-out rows, which the
     // physics fit held out too (one split, `magstand_core::held_out`, same blocks).
     let mask = &throttle.held.mask;
-    let blocks = magstand_ident::time_blocks_of(&rec.t_s);
+    // The throttle family's data hold the recording's times and their split, made once.
+    let blocks = throttle.data.time_blocks();
     let physics_residuals = physics.as_ref().map_err(Clone::clone).and_then(|p| {
         let reading = p
             .model

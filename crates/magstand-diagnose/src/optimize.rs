@@ -1,7 +1,8 @@
 //! Search over a candidate's nonlinear parameters (a time constant, a delay, a play width):
 //! a grid over the allowed range, then refinement of each coordinate around the best grid
-//! point by Brent's method (argmin). The objective is a weighted chi-square, so the uncertainty of a
-//! parameter follows from the curvature: `sd = sqrt(2 / f'')`, conditional on the others.
+//! point by Brent's method (argmin). The objective is a weighted chi-square, so the
+//! uncertainty of a parameter follows from the curvature: `sd = sqrt(2 / f'')`, conditional on
+//! the others.
 use argmin::core::{CostFunction, Executor};
 use argmin::solver::brent::BrentOpt;
 use rayon::prelude::*;

@@ -385,16 +385,8 @@ impl ValidFitConfig {
         };
         let model_of =
             |s: &Structure| Model::new("", data.spec.clone(), data.reference_ut, s.clone(), None);
-        let residual_sd = |s: &Structure| {
-            let r = model_of(s).residuals(data);
-            (SdModel::fit(&data.u, &r, rows, self.0.sd_knots), r)
-        };
-        let estimation = match &self.0.family {
-            Family::LocalLinear { estimation, .. } | Family::Automatic { estimation, .. } => {
-                Some(*estimation)
-            }
-            _ => None,
-        };
+        let residual_sd = |s: &Structure| self.residuals_and_noise(data, s, rows);
+        let estimation = self.local_estimation();
         let reweight = self.0.weighted && estimation.is_some();
         // A long recording settles its noise weights on the rows its structure search uses,
         // then fits the weighted coefficients on every row once (after the passes).
@@ -493,9 +485,8 @@ impl ValidFitConfig {
 
     /// The fit on every row of the structure a training fit chose. Unweighted, or on a long
     /// recording, its noise weights (none, or settled on tens of thousands of spread rows) are
-    /// kept and its normal
-    /// equations take the rows it left out (`left_out`), so the rows it summed are not summed
-    /// again. On a shorter one the noise model of a few hundred or thousand rows may not carry
+    /// kept and its normal equations take the rows it left out (`left_out`), so the rows it
+    /// summed are not summed again. On a shorter one the noise model of a few hundred or thousand rows may not carry
     /// to the rows left out (a spline extrapolated to a tiny sd gives a row all the weight):
     /// the structure is refitted on every row with its own reweighting, as a stated structure
     /// would be. `None` when the training fit left nothing to reuse (a polynomial).
@@ -508,12 +499,7 @@ impl ValidFitConfig {
         let Structure::LocalLinear(net) = &training.structure else {
             return None;
         };
-        let estimation = match &self.0.family {
-            Family::LocalLinear { estimation, .. } | Family::Automatic { estimation, .. } => {
-                *estimation
-            }
-            _ => return None,
-        };
+        let estimation = self.local_estimation()?;
         // Unit weights carry to any row; estimated ones only from a long recording.
         let trusted = training.weights.is_none() || training.sampled;
         let (Some(equations), true) = (&training.equations, trusted) else {
@@ -536,15 +522,36 @@ impl ValidFitConfig {
         };
         Some(fitted.map(|net| {
             let s = Structure::LocalLinear(net);
-            let r = Model::new("", data.spec.clone(), data.reference_ut, s.clone(), None)
-                .residuals(data);
+            let (sd, r) = self.residuals_and_noise(data, &s, &|_| true);
             RowsFit {
-                sd: SdModel::fit(&data.u, &r, |_| true, self.0.sd_knots),
+                sd,
                 residuals: Some(r),
                 structure: s,
                 training: None,
             }
         }))
+    }
+
+    /// The estimation of a local linear family; `None` for the autopilots' lines and the cubic.
+    fn local_estimation(&self) -> Option<Estimation> {
+        match &self.0.family {
+            Family::LocalLinear { estimation, .. } | Family::Automatic { estimation, .. } => {
+                Some(*estimation)
+            }
+            _ => None,
+        }
+    }
+
+    /// A structure's residuals at every row, and the noise model of those on `rows`.
+    fn residuals_and_noise(
+        &self,
+        data: &Dataset,
+        s: &Structure,
+        rows: &(dyn Fn(usize) -> bool + Sync),
+    ) -> (Option<SdModel>, Vec<Vec3>) {
+        let r =
+            Model::new("", data.spec.clone(), data.reference_ut, s.clone(), None).residuals(data);
+        (SdModel::fit(&data.u, &r, rows, self.0.sd_knots), r)
     }
 }
 

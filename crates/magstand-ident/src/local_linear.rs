@@ -130,7 +130,7 @@ pub(crate) struct NetEquations {
 
 impl NetEquations {
     /// The equations of the rows where `use_row` is true, row `k` weighted by `weight(k)`,
-    /// summed in fixed chunks on every core (see [`fit_weighted_rows`]).
+    /// summed in fixed chunks on every core ([`NetEquations::of_chunks`]).
     fn of_rows(
         data: &Dataset,
         partition: &RbfPartition,
@@ -138,16 +138,46 @@ impl NetEquations {
         use_row: &(dyn Fn(usize) -> bool + Sync),
         weight: &(dyn Fn(usize) -> Vec3 + Sync),
     ) -> Self {
-        let p = data.spec.regressor_count();
-        let sums = sum_in_chunks(
+        let rows_of = |range: std::ops::Range<usize>| {
+            range
+                .filter(|&k| use_row(k))
+                .map(|k| (data.u[k], data.regressors(k), data.y[k], weight(k)))
+        };
+        Self::of_chunks(
+            data,
+            partition,
+            estimation,
             data.len(),
             FIT_CHUNK_ROWS,
-            |range| {
-                let rows = range
-                    .filter(|&k| use_row(k))
-                    .map(|k| (data.u[k], data.regressors(k), data.y[k], weight(k)));
-                accumulate(p, partition, estimation, rows)
-            },
+            rows_of,
+        )
+    }
+
+    /// The equations of `n` weighted rows `(u, regressors, y, weight per axis)`, which
+    /// `rows_of` gives for a range of their indices. A row may stand for several of equal
+    /// input and regressors: its weight is then their weights' sum and its `y` their weighted
+    /// mean, which gives the same normal equations.
+    ///
+    /// Chunks of `chunk` rows are accumulated on every core and summed in row order
+    /// ([`sum_in_chunks`]): the chunks are fixed by `n` and `chunk` alone, so the coefficients
+    /// do not depend on the number of threads (and `n` up to `chunk` is one sequential pass;
+    /// none is one empty chunk, and the solve says there is no data).
+    pub(crate) fn of_chunks<'r, I>(
+        data: &Dataset,
+        partition: &RbfPartition,
+        estimation: Estimation,
+        n: usize,
+        chunk: usize,
+        rows_of: impl Fn(std::ops::Range<usize>) -> I + Sync,
+    ) -> Self
+    where
+        I: Iterator<Item = (f64, &'r [f64], Vec3, Vec3)>,
+    {
+        let p = data.spec.regressor_count();
+        let sums = sum_in_chunks(
+            n,
+            chunk,
+            |range| accumulate(p, partition, estimation, rows_of(range)),
             |sum, part| sum.merge(&part),
         );
         NetEquations {
@@ -171,38 +201,8 @@ impl NetEquations {
 
     /// The network these equations give.
     pub(crate) fn solve(&self, data: &Dataset) -> Result<LocalLinearNet, IdentError> {
-        solve(data, &self.partition, self.sums.clone())
+        solve(data, &self.partition, &self.sums)
     }
-}
-
-/// Fits the network on `n` weighted rows `(u, regressors, y, weight per axis)`, which
-/// `rows_of` gives for a range of their indices. A row may stand for several of equal input
-/// and regressors: its weight is then their weights' sum and its `y` their weighted mean,
-/// which gives the same normal equations.
-///
-/// Chunks of `chunk` rows are accumulated on every core and summed in row order: the chunks
-/// are fixed by `n` and `chunk` alone, so the coefficients do not depend on the number of
-/// threads (and `n` up to `chunk` is one sequential pass; none is one empty chunk, and the
-/// solve says there is no data).
-pub(crate) fn fit_weighted_rows<'r, I>(
-    data: &Dataset,
-    partition: &RbfPartition,
-    estimation: Estimation,
-    n: usize,
-    chunk: usize,
-    rows_of: impl Fn(std::ops::Range<usize>) -> I + Sync,
-) -> Result<LocalLinearNet, IdentError>
-where
-    I: Iterator<Item = (f64, &'r [f64], Vec3, Vec3)>,
-{
-    let p = data.spec.regressor_count();
-    let total = sum_in_chunks(
-        n,
-        chunk,
-        |range| accumulate(p, partition, estimation, rows_of(range)),
-        |sum, part| sum.merge(&part),
-    );
-    solve(data, partition, total)
 }
 
 /// `part` of each chunk of `0..n`, `chunk` long (one empty chunk when `n` is 0), computed on
@@ -427,7 +427,7 @@ impl GramBatch {
 fn solve(
     data: &Dataset,
     partition: &RbfPartition,
-    acc: Accumulated,
+    acc: &Accumulated,
 ) -> Result<LocalLinearNet, IdentError> {
     let m = partition.len();
     let p = data.spec.regressor_count();

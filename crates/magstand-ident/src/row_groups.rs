@@ -10,7 +10,7 @@ use magstand_core::rbf::RbfPartition;
 
 use crate::IdentError;
 use crate::dataset::Dataset;
-use crate::local_linear::{Estimation, LocalLinearNet, fit_weighted_rows, sum_in_chunks};
+use crate::local_linear::{Estimation, LocalLinearNet, NetEquations, sum_in_chunks};
 
 /// Which group each row of a dataset belongs to; groups in ascending input.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -195,7 +195,7 @@ impl<'d> Groups<'d> {
         partition: &RbfPartition,
         estimation: Estimation,
     ) -> Result<LocalLinearNet, IdentError> {
-        fit_weighted_rows(
+        NetEquations::of_chunks(
             self.data,
             partition,
             estimation,
@@ -205,6 +205,7 @@ impl<'d> Groups<'d> {
                 range.map(|i| (self.u[i], self.regressors(i), self.y_w[i], self.w[i]))
             },
         )
+        .solve(self.data)
     }
 
     /// Per-bin residual sums and row counts over `BINS` bins of the input on `lo..hi`.
@@ -326,11 +327,13 @@ mod tests {
             let grouped = Groups::of(&d, &rows, &weight)
                 .fit(&partition, estimation)
                 .unwrap();
-            let by_row = fit_weighted_rows(&d, &partition, estimation, d.len(), d.len(), |r| {
-                r.filter(|&k| rows(k))
-                    .map(|k| (d.u[k], d.regressors(k), d.y[k], weight(k)))
-            })
-            .unwrap();
+            let by_row =
+                NetEquations::of_chunks(&d, &partition, estimation, d.len(), d.len(), |r| {
+                    r.filter(|&k| rows(k))
+                        .map(|k| (d.u[k], d.regressors(k), d.y[k], weight(k)))
+                })
+                .solve(&d)
+                .unwrap();
             for a in 0..3 {
                 for (g, r) in grouped.coefficients[a].iter().zip(&by_row.coefficients[a]) {
                     for (x, y) in g.iter().zip(r) {
