@@ -100,7 +100,11 @@ impl Fitted {
     }
 }
 
+/// Rows from which a fit's sums are split over two threads: fewer cost less than the split.
+const PARALLEL_FIT_ROWS: usize = 4096;
+
 /// Fits `design` to `y - fixed` on the rows not held out, per axis, and predicts every row.
+
 pub(crate) fn fit(
     design: &Design,
     y: &[Vec3],
@@ -110,20 +114,35 @@ pub(crate) fn fit(
 ) -> Result<Fitted, SolveError> {
     let p = design.len();
     let n = y.len();
-    let mut ne: [NormalEquations; 3] = std::array::from_fn(|_| NormalEquations::new(p, 1));
-    let mut x = vec![0.0; p];
     let target = |r: usize| match fixed {
         Some(f) => y[r] - f[r],
         None => y[r],
     };
-    for r in (0..n).filter(|&r| !holdout[r]) {
-        for (xj, col) in x.iter_mut().zip(&design.columns) {
-            *xj = col[r];
+    // The sums of a range of rows, per axis.
+    let sums = |rows: std::ops::Range<usize>| {
+        let mut ne: [NormalEquations; 3] = std::array::from_fn(|_| NormalEquations::new(p, 1));
+        let mut x = vec![0.0; p];
+        for r in rows.filter(|&r| !holdout[r]) {
+            for (xj, col) in x.iter_mut().zip(&design.columns) {
+                *xj = col[r];
+            }
+            let t = target(r);
+            for a in 0..3 {
+                ne[a].add(&x, &[t[a]], weights.0[r][a]);
+            }
         }
-        let t = target(r);
-        for a in 0..3 {
-            ne[a].add(&x, &[t[a]], weights.0[r][a]);
-        }
+        ne
+    };
+    // Two fixed halves, summed on both cores when one is free (the searches' sequential steps
+    // leave one idle), merged in the same order whatever the thread count.
+    let half = n / 2;
+    let (mut ne, second) = if n >= PARALLEL_FIT_ROWS {
+        rayon::join(|| sums(0..half), || sums(half..n))
+    } else {
+        (sums(0..half), sums(half..n))
+    };
+    for (a, b) in ne.iter_mut().zip(&second) {
+        a.merge(b);
     }
     let mut coef = vec![[0.0; 3]; p];
     let mut coef_sd = vec![[0.0; 3]; p];

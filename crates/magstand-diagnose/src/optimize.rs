@@ -72,6 +72,10 @@ const REFINE_ITERATIONS: u64 = 11;
 /// curvature's step/50 is sensitive to. Brent's method stops within three times this.
 const REFINE_TOLERANCE_STEPS: f64 = 0.003;
 
+/// Where the refinement looks just inside an end of the range, as a fraction of a grid step:
+/// half of [`Search::at_bound`]'s 2 %, so a minimum between it and the end is at the bound.
+const BOUND_PROBE_STEPS: f64 = 0.01;
+
 /// The objective as argmin sees it.
 struct Objective<F>(F);
 
@@ -103,14 +107,7 @@ pub(crate) fn minimize(
     searches: &[Search],
     f: impl Fn(&[f64]) -> Option<f64> + Sync,
 ) -> Option<Optimum> {
-    let eval = |u: &[f64]| -> f64 {
-        let theta: Vec<f64> = searches
-            .iter()
-            .zip(u)
-            .map(|(s, &u)| s.value_at(u))
-            .collect();
-        f(&theta).filter(|v| v.is_finite()).unwrap_or(f64::INFINITY)
-    };
+    let eval = evaluator(searches, &f);
     if searches.is_empty() {
         let value = eval(&[]);
         return value.is_finite().then(|| Optimum {
@@ -162,6 +159,60 @@ pub(crate) fn minimize(
     if !best.is_finite() {
         return None;
     }
+    polish(searches, best_u, best, &eval)
+}
+
+/// Refines `theta` (a good point already, such as an earlier search's optimum) by Brent's
+/// method within one grid step of each parameter, without the grid: what a second pass over
+/// parameters that an earlier pass searched on the whole grid needs.
+pub(crate) fn minimize_near(
+    searches: &[Search],
+    theta: &[f64],
+    f: impl Fn(&[f64]) -> Option<f64> + Sync,
+) -> Option<Optimum> {
+    if searches.is_empty() || theta.len() != searches.len() {
+        return minimize(searches, f);
+    }
+    let eval = evaluator(searches, &f);
+    let start: Vec<f64> = searches
+        .iter()
+        .zip(theta)
+        .map(|(s, &v)| {
+            let (lo, hi) = s.u_range();
+            s.unit_of(v).clamp(lo, hi)
+        })
+        .collect();
+    let value = eval(&start);
+    if value.is_finite() {
+        return polish(searches, start, value, &eval);
+    }
+    drop(eval);
+    minimize(searches, f)
+}
+
+/// The objective in search coordinates: infinite where the fit fails.
+fn evaluator<'f>(
+    searches: &'f [Search],
+    f: &'f (impl Fn(&[f64]) -> Option<f64> + Sync),
+) -> impl Fn(&[f64]) -> f64 + Sync + 'f {
+    move |u: &[f64]| -> f64 {
+        let theta: Vec<f64> = searches
+            .iter()
+            .zip(u)
+            .map(|(s, &u)| s.value_at(u))
+            .collect();
+        f(&theta).filter(|v| v.is_finite()).unwrap_or(f64::INFINITY)
+    }
+}
+
+/// Brent's refinement of each coordinate around `best_u` (value `best`), then each
+/// parameter's uncertainty from the curvature.
+fn polish(
+    searches: &[Search],
+    mut best_u: Vec<f64>,
+    mut best: f64,
+    eval: &(impl Fn(&[f64]) -> f64 + Sync),
+) -> Option<Optimum> {
     // Refinement by Brent's method, coordinate by coordinate.
     let passes = if searches.len() > 1 { 2 } else { 1 };
     for _ in 0..passes {
@@ -174,6 +225,24 @@ pub(crate) fn minimize(
                 u[k] = x;
                 eval(&u)
             };
+            // A best point at an end of the range whose value rises just inside it: the
+            // minimum of the (unimodal) bracket lies within that distance of the end, which
+            // `Search::at_bound` calls the bound, so Brent's steps towards it (all of its
+            // evaluations, each a replay) would not change what is reported.
+            let inside = BOUND_PROBE_STEPS * h;
+            let end = if best_u[k] <= ulo {
+                Some(ulo + inside)
+            } else if best_u[k] >= uhi {
+                Some(uhi - inside)
+            } else {
+                None
+            };
+            if let Some(x) = end {
+                let fx = at(x, &best_u);
+                if fx >= best {
+                    continue;
+                }
+            }
             let Some((x, fx)) = brent(a, b, REFINE_TOLERANCE_STEPS * h, |x| at(x, &best_u)) else {
                 continue;
             };
@@ -251,6 +320,56 @@ mod tests {
             "{:?}",
             o.theta
         );
+    }
+
+    #[test]
+    fn a_minimum_beyond_the_range_is_reported_at_its_edge_in_one_evaluation() {
+        // chi2 falls towards 0 and beyond: the grid's best point is 0, and one look just
+        // inside it shows the value rising, so the bound is the answer and Brent's steps are
+        // not taken.
+        let calls = std::sync::atomic::AtomicUsize::new(0);
+        let s = search("x", 0.0, 1.0, false);
+        let o = minimize(std::slice::from_ref(&s), |t| {
+            calls.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+            Some((t[0] + 0.3).powi(2))
+        })
+        .unwrap();
+        let n = calls.into_inner();
+        assert_eq!(o.theta, vec![0.0], "{o:?}");
+        assert!(s.at_bound(o.theta[0]));
+        // 9 grid points, the probe, and the curvature's two.
+        assert_eq!(n, 9 + 1 + 2, "{n} evaluations");
+        // A minimum just inside the edge is still refined.
+        let o = minimize(std::slice::from_ref(&s), |t| Some((t[0] - 0.05).powi(2))).unwrap();
+        assert!((o.theta[0] - 0.05).abs() < 1e-3, "{o:?}");
+        assert!(!s.at_bound(o.theta[0]));
+    }
+
+    #[test]
+    fn refinement_near_a_point_finds_the_minimum_within_a_grid_step() {
+        let searches = [search("a", 0.01, 10.0, true), search("b", 0.0, 1.0, false)];
+        let f = |t: &[f64]| {
+            Some((t[0].ln() - 0.3f64.ln()).powi(2) * 100.0 + (t[1] - 0.6).powi(2) * 100.0)
+        };
+        // Started less than a grid step away (steps: 0.86 in ln a, 0.125 in b).
+        let o = minimize_near(&searches, &[0.25, 0.55], f).unwrap();
+        assert!(
+            (o.theta[0] - 0.3).abs() < 1e-3 && (o.theta[1] - 0.6).abs() < 1e-3,
+            "{:?}",
+            o.theta
+        );
+        // The same optimum as the whole search, with its curvature's uncertainty.
+        let whole = minimize(&searches, f).unwrap();
+        for k in 0..2 {
+            let (a, b) = (o.sd[k].unwrap(), whole.sd[k].unwrap());
+            assert!((a - b).abs() < 1e-3 * b, "sd {k}: {a} vs {b}");
+        }
+        // A start where the objective fails falls back to the whole search.
+        let o = minimize_near(&searches, &[0.25, 0.55], |t| {
+            (t[1] != 0.55).then(|| f(t).unwrap())
+        })
+        .unwrap();
+        assert!((o.theta[1] - 0.6).abs() < 1e-3, "{:?}", o.theta);
     }
 
     #[test]
