@@ -162,34 +162,6 @@ pub(crate) fn minimize(
     polish(searches, best_u, best, &eval)
 }
 
-/// Refines `theta` (a good point already, such as an earlier search's optimum) by Brent's
-/// method within one grid step of each parameter, without the grid: what a second pass over
-/// parameters that an earlier pass searched on the whole grid needs.
-pub(crate) fn minimize_near(
-    searches: &[Search],
-    theta: &[f64],
-    f: impl Fn(&[f64]) -> Option<f64> + Sync,
-) -> Option<Optimum> {
-    if searches.is_empty() || theta.len() != searches.len() {
-        return minimize(searches, f);
-    }
-    let eval = evaluator(searches, &f);
-    let start: Vec<f64> = searches
-        .iter()
-        .zip(theta)
-        .map(|(s, &v)| {
-            let (lo, hi) = s.u_range();
-            s.unit_of(v).clamp(lo, hi)
-        })
-        .collect();
-    let value = eval(&start);
-    if value.is_finite() {
-        return polish(searches, start, value, &eval);
-    }
-    drop(eval);
-    minimize(searches, f)
-}
-
 /// The objective in search coordinates: infinite where the fit fails.
 fn evaluator<'f>(
     searches: &'f [Search],
@@ -343,33 +315,6 @@ mod tests {
         let o = minimize(std::slice::from_ref(&s), |t| Some((t[0] - 0.05).powi(2))).unwrap();
         assert!((o.theta[0] - 0.05).abs() < 1e-3, "{o:?}");
         assert!(!s.at_bound(o.theta[0]));
-    }
-
-    #[test]
-    fn refinement_near_a_point_finds_the_minimum_within_a_grid_step() {
-        let searches = [search("a", 0.01, 10.0, true), search("b", 0.0, 1.0, false)];
-        let f = |t: &[f64]| {
-            Some((t[0].ln() - 0.3f64.ln()).powi(2) * 100.0 + (t[1] - 0.6).powi(2) * 100.0)
-        };
-        // Started less than a grid step away (steps: 0.86 in ln a, 0.125 in b).
-        let o = minimize_near(&searches, &[0.25, 0.55], f).unwrap();
-        assert!(
-            (o.theta[0] - 0.3).abs() < 1e-3 && (o.theta[1] - 0.6).abs() < 1e-3,
-            "{:?}",
-            o.theta
-        );
-        // The same optimum as the whole search, with its curvature's uncertainty.
-        let whole = minimize(&searches, f).unwrap();
-        for k in 0..2 {
-            let (a, b) = (o.sd[k].unwrap(), whole.sd[k].unwrap());
-            assert!((a - b).abs() < 1e-3 * b, "sd {k}: {a} vs {b}");
-        }
-        // A start where the objective fails falls back to the whole search.
-        let o = minimize_near(&searches, &[0.25, 0.55], |t| {
-            (t[1] != 0.55).then(|| f(t).unwrap())
-        })
-        .unwrap();
-        assert!((o.theta[1] - 0.6).abs() < 1e-3, "{:?}", o.theta);
     }
 
     #[test]

@@ -122,6 +122,8 @@ pub(crate) fn build_with_lead(ctx: &Context, terms: &[(&dyn Effect, &[f64])], le
     // The magnetometer's delay shifts a replay without changing it: replays are kept without
     // it and shifted here, so a search over the delay replays once.
     let delay_s = std::mem::take(&mut s.logging.mag_delay_s);
+    // The replay takes the lead within 0..1: a curvature step past an end is the end's replay.
+    let lead = lead.clamp(0.0, 1.0);
     let undelayed = ctx.replays.get_or_make(&s, lead, logged, || {
         replay_logged(&s, &ctx.rec.t_s, &ctx.rec.thr, logged, lead)
     });

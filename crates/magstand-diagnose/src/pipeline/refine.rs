@@ -3,7 +3,7 @@
 //! offered to the next round as a new effect.
 use crate::effects::Context;
 use crate::fit::Weights;
-use crate::optimize::{Search, minimize, minimize_near};
+use crate::optimize::{Search, minimize};
 
 use super::design::{Term, as_refs, chi2_of};
 
@@ -11,23 +11,20 @@ use super::design::{Term, as_refs, chi2_of};
 const REFINE_PASSES: usize = 2;
 
 /// Refits the nonlinear parameters of all accepted terms and the command lead together, by
-/// coordinate search: each term's parameters with the others held, then the lead,
-/// [`REFINE_PASSES`] times. The first pass searches each over its whole range (a new term can
-/// move the others' optimum far); later passes refine within a grid step of the previous one,
-/// where what is left to find is the small shift the others' new values cause (each grid
-/// point is a replay of the recording).
+/// coordinate search: each term's parameters (over its whole search range) with the others
+/// held, then the lead, [`REFINE_PASSES`] times.
 ///
 /// A search whose objective is the one it was last run on (the same other parameters and
-/// lead, bit for bit) is not run again: it would find the same optimum. The newest term was
-/// just searched as a candidate beside the others as they are.
+/// lead, bit for bit) is not run again: it would find the same optimum, and each of its grid
+/// points is a replay of the recording. The newest term was just searched as a candidate
+/// beside the others as they are.
 pub(crate) fn refine(ctx: &mut Context, terms: &mut [Term], weights: &Weights) {
     let mut searched_at: Vec<Option<Vec<u64>>> = vec![None; terms.len()];
     if let Some(last) = searched_at.last_mut() {
         *last = Some(objective_key(ctx, terms, terms.len() - 1));
     }
     let mut timed_at = None;
-    for pass in 0..REFINE_PASSES {
-        let whole_range = pass == 0;
+    for _ in 0..REFINE_PASSES {
         for k in 0..terms.len() {
             let searches = terms[k].effect.search(ctx);
             let key = objective_key(ctx, terms, k);
@@ -39,68 +36,49 @@ pub(crate) fn refine(ctx: &mut Context, terms: &mut [Term], weights: &Weights) {
                 refs[k].1 = theta;
                 chi2_of(ctx, &refs, ctx.command_lead, weights)
             };
-            let opt = if whole_range {
-                minimize(&searches, chi2)
-            } else {
-                minimize_near(&searches, &terms[k].theta, chi2)
-            };
-            if let Some(opt) = opt {
+            if let Some(opt) = minimize(&searches, chi2) {
                 terms[k].theta = opt.theta;
                 terms[k].theta_sd = opt.sd;
             }
             searched_at[k] = Some(key);
         }
-        let key = objective_key(ctx, terms, usize::MAX);
+        let key = objective_key(ctx, terms, TIMING);
         if timed_at.as_ref() != Some(&key) {
-            let from = (!whole_range).then_some(ctx.command_lead);
-            ctx.command_lead = calibrate_timing_from(ctx, terms, weights, from);
-            timed_at = Some(objective_key(ctx, terms, usize::MAX));
+            ctx.command_lead = calibrate_timing(ctx, terms, weights);
+            timed_at = Some(key);
         }
     }
 }
 
-/// What the search of term `skip` (none for `usize::MAX`, the lead's search) holds fixed: the
-/// other terms' parameters and the command lead, as bits.
+/// The index [`objective_key`] takes for the command lead's search.
+const TIMING: usize = usize::MAX;
+
+/// What the search of term `skip` (or of the command lead, for [`TIMING`]) holds fixed: the
+/// other terms' parameters and, for a term, the command lead, as bits.
 fn objective_key(ctx: &Context, terms: &[Term], skip: usize) -> Vec<u64> {
     terms
         .iter()
         .enumerate()
         .filter(|&(k, _)| k != skip)
         .flat_map(|(_, t)| t.theta.iter().map(|v| v.to_bits()))
-        .chain((skip != usize::MAX).then_some(ctx.command_lead.to_bits()))
+        .chain((skip != TIMING).then_some(ctx.command_lead.to_bits()))
         .collect()
 }
-
-/// The range of the command lead: the moment within each interval at which logged command
-/// changes take effect.
-const LEAD_SEARCH: Search = Search {
-    name: "command_lead",
-    unit: "interval",
-    lo: 0.0,
-    hi: 1.0,
-    log: false,
-    points: 5,
-};
 
 /// The moment within each interval at which logged command changes take effect, searched in
 /// 0..1.
 pub(crate) fn calibrate_timing(ctx: &Context, terms: &[Term], weights: &Weights) -> f64 {
-    calibrate_timing_from(ctx, terms, weights, None)
-}
-
-/// [`calibrate_timing`], refined near `from` where given instead of searched over 0..1.
-fn calibrate_timing_from(
-    ctx: &Context,
-    terms: &[Term],
-    weights: &Weights,
-    from: Option<f64>,
-) -> f64 {
     let refs = as_refs(terms);
-    let chi2 = |t: &[f64]| chi2_of(ctx, &refs, t[0], weights);
-    let searches = [LEAD_SEARCH];
-    match from {
-        Some(lead) => minimize_near(&searches, &[lead], chi2),
-        None => minimize(&searches, chi2),
-    }
+    minimize(
+        &[Search {
+            name: "command_lead",
+            unit: "interval",
+            lo: 0.0,
+            hi: 1.0,
+            log: false,
+            points: 5,
+        }],
+        |t| chi2_of(ctx, &refs, t[0], weights),
+    )
     .map_or(0.5, |o| o.theta[0])
 }
