@@ -36,24 +36,22 @@ impl Design {
         let n = trace.len();
         let mut d = Design::default();
         d.push("reference", vec![1.0; n]);
-        let motors = trace.speed.len();
-        // Each row's sums over the motors, all four columns in one pass; the powers by
+        // Each row's sums over the motors, motor after motor (the order of a sum per row), a
+        // column at a time so that the loops run over contiguous rows; the powers by
         // multiplication (the bits `powi` gives for 2 and 3).
-        let mut driven = Vec::with_capacity(n);
-        let mut powers: [Vec<f64>; 3] = std::array::from_fn(|_| Vec::with_capacity(n));
-        for r in 0..n {
-            let term = |m: usize, k: usize| {
-                let s = trace.speed[m][r];
-                let power = match k {
-                    1 => s,
-                    2 => s * s,
-                    _ => s * (s * s),
-                };
-                trace.driven[m][r] * power
-            };
-            driven.push((0..motors).map(|m| trace.driven[m][r]).sum());
-            for (k, column) in powers.iter_mut().enumerate() {
-                column.push((0..motors).map(|m| term(m, k + 1)).sum());
+        let mut driven = vec![0.0; n];
+        let mut powers: [Vec<f64>; 3] = std::array::from_fn(|_| vec![0.0; n]);
+        for (speed, on) in trace.speed.iter().zip(&trace.driven) {
+            let [p1, p2, p3] = &mut powers;
+            // Every column of the same length, so the loop runs without bounds checks.
+            let (speed, on, driven) = (&speed[..n], &on[..n], &mut driven[..n]);
+            let (p1, p2, p3) = (&mut p1[..n], &mut p2[..n], &mut p3[..n]);
+            for r in 0..n {
+                let (s, d) = (speed[r], on[r]);
+                driven[r] += d;
+                p1[r] += d * s;
+                p2[r] += d * (s * s);
+                p3[r] += d * (s * (s * s));
             }
         }
         d.push("driven", driven);
