@@ -362,34 +362,59 @@ impl Trace {
     /// interpolation, the first row's state before the start): what a magnetometer stream
     /// logged `delay_s` late sees.
     pub fn delay(&mut self, delay_s: f64) {
-        let t = &self.t_s;
-        let at: Vec<(usize, f64)> = t.iter().map(|&ti| locate(t, ti - delay_s)).collect();
-        for m in 0..self.speed.len() {
-            shift(&mut self.speed[m], &at);
-            shift(&mut self.driven[m], &at);
-            shift(&mut self.current_a[m], &at);
+        *self = self.delayed(delay_s);
+    }
+
+    /// The trace [`Trace::delay`] makes of this one, built from it without changing it (a
+    /// search over the delay shifts one replay many times).
+    pub fn delayed(&self, delay_s: f64) -> Trace {
+        let at = locate_increasing(&self.t_s, self.t_s.iter().map(|&t| t - delay_s));
+        let shifted = |col: &Vec<f64>| shifted(col, &at);
+        Trace {
+            t_s: self.t_s.clone(),
+            speed: self.speed.iter().map(shifted).collect(),
+            driven: self.driven.iter().map(shifted).collect(),
+            current_a: self.current_a.iter().map(shifted).collect(),
+            total_a: shifted(&self.total_a),
+            voltage_v: shifted(&self.voltage_v),
+            modules: self
+                .modules
+                .iter()
+                .map(|(name, col)| (*name, shifted(col)))
+                .collect(),
+            extra_ut: self::shifted(&self.extra_ut, &at),
         }
-        shift(&mut self.total_a, &at);
-        shift(&mut self.voltage_v, &at);
-        for (_, col) in self.modules.iter_mut() {
-            shift(col, &at);
-        }
-        shift(&mut self.extra_ut, &at);
     }
 }
 
-/// Replaces each value by the linear interpolation `at` gives: (row before, fraction to next).
-fn shift<T>(col: &mut [T], at: &[(usize, f64)])
+/// [`locate`] of each of the nondecreasing times `xs` among the increasing times `t`, walking
+/// both once instead of a binary search per time: the same places.
+fn locate_increasing(t: &[f64], xs: impl Iterator<Item = f64>) -> Vec<(usize, f64)> {
+    let mut k = 0;
+    xs.map(|x| {
+        // `k` counts the times at or before `x`, as `locate`'s partition point does.
+        while k < t.len() && t[k] <= x {
+            k += 1;
+        }
+        if k == 0 || k >= t.len() {
+            locate(t, x)
+        } else {
+            (k - 1, (x - t[k - 1]) / (t[k] - t[k - 1]))
+        }
+    })
+    .collect()
+}
+
+/// The column read at the places `at` (row before, fraction to next), by linear
+/// interpolation.
+fn shifted<T>(col: &[T], at: &[(usize, f64)]) -> Vec<T>
 where
     T: Copy
         + std::ops::Add<Output = T>
         + std::ops::Sub<Output = T>
         + std::ops::Mul<f64, Output = T>,
 {
-    let old = col.to_vec();
-    for (v, &place) in col.iter_mut().zip(at) {
-        *v = interpolate(&old, place);
-    }
+    at.iter().map(|&place| interpolate(col, place)).collect()
 }
 
 #[cfg(test)]
@@ -487,6 +512,17 @@ mod tests {
             );
         }
         assert_eq!(late.total_a[0], tr.total_a[0]);
+    }
+
+    #[test]
+    fn walking_the_times_locates_as_the_binary_search_does() {
+        // Uneven times with a repeated one and a gap; places before, inside and after them.
+        let t = [0.0, 0.02, 0.04, 0.04, 0.07, 5.0, 5.02];
+        let xs: Vec<f64> = (-3..=520).map(|i| f64::from(i) * 0.01 - 0.005).collect();
+        let walked = locate_increasing(&t, xs.iter().copied());
+        for (x, w) in xs.iter().zip(&walked) {
+            assert_eq!(*w, locate(&t, *x), "x = {x}");
+        }
     }
 
     /// Regression: a log with two flights ten minutes apart was replayed in 0.01 s substeps

@@ -129,9 +129,7 @@ pub(crate) fn build_with_lead(ctx: &Context, terms: &[(&dyn Effect, &[f64])], le
     });
     let delayed;
     let trace: &Trace = if delay_s > 0.0 {
-        let mut t = (*undelayed).clone();
-        t.delay(delay_s);
-        delayed = t;
+        delayed = undelayed.delayed(delay_s);
         &delayed
     } else {
         &undelayed
