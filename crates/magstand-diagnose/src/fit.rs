@@ -2,7 +2,7 @@
 //! regressor columns, fitted per axis on the identification rows only, with inverse-variance
 //! weights from the throttle-dependent noise model.
 use magstand_core::Vec3;
-use magstand_ident::least_squares::{NormalEquations, SolveError};
+use magstand_ident::least_squares::{NormalEquations, SharedRowEquations, SolveError};
 use magstand_sim::replay::Trace;
 
 /// Regressor columns (one value per row each) with their names.
@@ -118,16 +118,14 @@ pub(crate) fn fit(
     };
     // The sums of a range of rows, per axis.
     let sums = |rows: std::ops::Range<usize>| {
-        let mut ne: [NormalEquations; 3] = std::array::from_fn(|_| NormalEquations::new(p, 1));
+        let mut ne = SharedRowEquations::<3>::new(p);
         let mut x = vec![0.0; p];
         for r in rows.filter(|&r| !holdout[r]) {
             for (xj, col) in x.iter_mut().zip(&design.columns) {
                 *xj = col[r];
             }
             let t = target(r);
-            for a in 0..3 {
-                ne[a].add(&x, &[t[a]], weights.0[r][a]);
-            }
+            ne.add(&x, [t.x, t.y, t.z], weights.0[r]);
         }
         ne
     };
@@ -139,9 +137,8 @@ pub(crate) fn fit(
     } else {
         (sums(0..half), sums(half..n))
     };
-    for (a, b) in ne.iter_mut().zip(&second) {
-        a.merge(b);
-    }
+    ne.merge(&second);
+    let ne = ne.into_equations();
     let mut coef = vec![[0.0; 3]; p];
     let mut coef_sd = vec![[0.0; 3]; p];
     for a in 0..3 {

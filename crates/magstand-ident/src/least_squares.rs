@@ -262,6 +262,107 @@ impl NormalEquations {
     }
 }
 
+/// The normal equations of `K` outputs that share one regressor row but weigh it each by its
+/// own weight (a magnetometer's three axes under their own noise variances): `K` separate
+/// systems, summed in one pass over the rows. Each product is the one
+/// [`NormalEquations::add`] forms, in the same order, so the sums carry the same bits; the
+/// row's products are formed once for all outputs instead of once per output.
+#[derive(Debug, Clone)]
+pub struct SharedRowEquations<const K: usize> {
+    params: usize,
+    /// The lower triangle of each `X^T W X`, column after column.
+    xtx: Vec<[f64; K]>,
+    xty: Vec<[f64; K]>,
+    weight_sum: [f64; K],
+    rows: [usize; K],
+    /// The row's regressors times each output's weight, reused from row to row.
+    scaled: Vec<[f64; K]>,
+}
+
+impl<const K: usize> SharedRowEquations<K> {
+    /// An empty accumulator for `params` regressors.
+    pub fn new(params: usize) -> Self {
+        Self {
+            params,
+            xtx: vec![[0.0; K]; params * (params + 1) / 2],
+            xty: vec![[0.0; K]; params],
+            weight_sum: [0.0; K],
+            rows: [0; K],
+            scaled: vec![[0.0; K]; params],
+        }
+    }
+
+    /// Adds one row `x` with output `k`'s value `y[k]` and weight `w[k]` (an output whose
+    /// weight is not positive skips the row, as [`NormalEquations::add`] does).
+    #[inline]
+    pub fn add(&mut self, x: &[f64], y: [f64; K], w: [f64; K]) {
+        let p = self.params;
+        let x = &x[..p];
+        let w = w.map(|w| if w > 0.0 { w } else { 0.0 });
+        for k in 0..K {
+            if w[k] > 0.0 {
+                self.weight_sum[k] += w[k];
+                self.rows[k] += 1;
+            }
+        }
+        for (s, &xi) in self.scaled.iter_mut().zip(x) {
+            *s = w.map(|w| w * xi);
+        }
+        let mut at = 0;
+        for i in 0..p {
+            let wxi = self.scaled[i];
+            for (c, &xj) in self.xtx[at..at + p - i].iter_mut().zip(&x[i..]) {
+                for k in 0..K {
+                    c[k] += wxi[k] * xj;
+                }
+            }
+            at += p - i;
+            for k in 0..K {
+                self.xty[i][k] += wxi[k] * y[k];
+            }
+        }
+    }
+
+    /// Adds another accumulator's sums (the rows of another chunk).
+    pub fn merge(&mut self, other: &Self) {
+        for (a, b) in self.xtx.iter_mut().zip(&other.xtx) {
+            for k in 0..K {
+                a[k] += b[k];
+            }
+        }
+        for (a, b) in self.xty.iter_mut().zip(&other.xty) {
+            for k in 0..K {
+                a[k] += b[k];
+            }
+        }
+        for k in 0..K {
+            self.weight_sum[k] += other.weight_sum[k];
+            self.rows[k] += other.rows[k];
+        }
+    }
+
+    /// The `K` systems, each ready to solve.
+    pub fn into_equations(self) -> [NormalEquations; K] {
+        let p = self.params;
+        std::array::from_fn(|k| {
+            let mut xtx = DMatrix::zeros(p, p);
+            let mut at = 0;
+            for i in 0..p {
+                for j in i..p {
+                    xtx[(j, i)] = self.xtx[at][k];
+                    at += 1;
+                }
+            }
+            NormalEquations {
+                xtx,
+                xty: DMatrix::from_fn(p, 1, |i, _| self.xty[i][k]),
+                weight_sum: self.weight_sum[k],
+                rows: self.rows[k],
+            }
+        })
+    }
+}
+
 /// Index of the first column of `a` whose pivot collapses in an unpivoted elimination.
 fn first_dependent(a: &DMatrix<f64>) -> usize {
     let p = a.nrows();
@@ -287,6 +388,51 @@ type Factor = (nalgebra::Cholesky<f64, nalgebra::Dyn>, DVector<f64>, f64);
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn shared_rows_give_each_output_the_sums_of_its_own_equations() {
+        // Three outputs, their own weights (one of them zero on some rows), rows split in two
+        // chunks and merged: the same bits as three accumulators fed row by row.
+        let mut shared = [SharedRowEquations::<3>::new(4), SharedRowEquations::new(4)];
+        let mut chunks: [[NormalEquations; 3]; 2] =
+            std::array::from_fn(|_| std::array::from_fn(|_| NormalEquations::new(4, 1)));
+        for r in 0..200 {
+            let t = r as f64 * 0.37;
+            let x = [1.0, t.sin(), t.cos() * 2.0, (t * 0.1).powi(2)];
+            let y = [t.sin() + 0.3, -t, 1.0 / (1.0 + t)];
+            let w = [1.0 + t.cos().abs(), if r % 7 == 0 { 0.0 } else { 0.5 }, 2.0];
+            shared[r / 120].add(&x, y, w);
+            for k in 0..3 {
+                chunks[r / 120][k].add(&x, &[y[k]], w[k]);
+            }
+        }
+        let [mut first, second] = shared;
+        first.merge(&second);
+        let mut merged: [NormalEquations; 3] = std::array::from_fn(|_| NormalEquations::new(4, 1));
+        for k in 0..3 {
+            merged[k].merge(&chunks[0][k]);
+            merged[k].merge(&chunks[1][k]);
+        }
+        for (k, eq) in first.into_equations().iter().enumerate() {
+            assert_eq!(eq.rows(), merged[k].rows(), "output {k}");
+            assert_eq!(eq.weight_sum, merged[k].weight_sum, "output {k}");
+            for i in 0..4 {
+                assert_eq!(eq.xty[(i, 0)], merged[k].xty[(i, 0)], "output {k} xty {i}");
+                for j in i..4 {
+                    assert_eq!(
+                        eq.xtx[(j, i)],
+                        merged[k].xtx[(j, i)],
+                        "output {k} ({j}, {i})"
+                    );
+                }
+            }
+            assert_eq!(
+                eq.solve().unwrap(),
+                merged[k].solve().unwrap(),
+                "output {k}"
+            );
+        }
+    }
 
     #[test]
     fn recovers_an_exact_line() {
