@@ -24,6 +24,8 @@
 //! | `automatic-current` (the same on `bat_a`) | `bat_a` is logged |
 //! | `automatic-motors` (the same on each motor's command) | the motor commands differ |
 //! | `physics` | a stand recording (not a flight) of at most [`PHYSICS_MAX_ROWS`] rows |
+use std::borrow::Cow;
+
 use magstand_core::{Recording, Vec3};
 use magstand_ident::family_choice::{Contender, FamilyChoice, FamilyId, choose};
 use magstand_ident::{Dataset, FitConfig, InputKind, Model, ValidFitConfig};
@@ -120,11 +122,17 @@ pub fn choose_model(
     nominal: &ValidScenario,
     fallback_reference_ut: Option<Vec3>,
 ) -> Result<(DisturbanceModel, FamilyChoice), DiagnoseError> {
+    // The throttle family's data, which every recording can take (its failure is the
+    // recording's, and says so); the other inputs' data share its deviations, times and split.
+    let base = Dataset::from_recording_or(rec, InputKind::Throttle, origin, fallback_reference_ut)?;
     // Each local family's training fit only: the held-out residuals judge it, and only the
     // family chosen is then fitted on every row.
     let local = |input: InputKind| -> Result<LocalFamily, DiagnoseError> {
         let cfg: ValidFitConfig = FitConfig::automatic().with_input(input).check()?;
-        let data = Dataset::from_recording_or(rec, input, origin, fallback_reference_ut)?;
+        let data = match input {
+            InputKind::Throttle => Cow::Borrowed(&base),
+            _ => Cow::Owned(base.with_input(rec, input)?),
+        };
         let held = cfg.held_out(&data)?;
         Ok(LocalFamily { cfg, data, held })
     };
@@ -177,7 +185,6 @@ pub fn choose_model(
             )
         },
     );
-    // The family every recording can take: its failure is the recording's, and says so.
     let throttle = throttle?;
     // The split every family is judged on: the identification fit's held-out rows, which the
     // physics fit held out too (one split, `magstand_core::held_out`, same blocks).
@@ -235,7 +242,10 @@ pub fn choose_model(
 
 /// A local linear family as the choice judges it: its training fit's held-out residuals,
 /// borrowed.
-fn local_contender<'a>(family: FamilyId, fit: Result<&'a LocalFamily, &String>) -> Contender<'a> {
+fn local_contender<'a>(
+    family: FamilyId,
+    fit: Result<&'a LocalFamily<'_>, &String>,
+) -> Contender<'a> {
     Contender {
         family,
         parameters: fit.map_or(0, |f| f.held.parameters),
@@ -246,9 +256,9 @@ fn local_contender<'a>(family: FamilyId, fit: Result<&'a LocalFamily, &String>) 
 }
 
 /// A local linear family's training fit, with what its fit on every row needs.
-struct LocalFamily {
+struct LocalFamily<'d> {
     cfg: ValidFitConfig,
-    data: Dataset,
+    data: Cow<'d, Dataset>,
     held: magstand_ident::HeldOut,
 }
 

@@ -2,6 +2,8 @@
 //! models, and the deviation from the motors-off reading (eq. 9).
 use serde::{Deserialize, Serialize};
 
+use std::sync::Arc;
+
 use crate::IdentError;
 use magstand_core::{Recording, Vec3};
 
@@ -128,10 +130,11 @@ pub struct Dataset {
     pub u: Vec<f64>,
     /// Regressors, row-major, [`InputSpec::regressor_count`] per row.
     pub x: Vec<f64>,
-    /// Deviation from the motors-off reference per row (eq. 9), µT.
-    pub y: Vec<Vec3>,
-    /// Time per row, s.
-    pub t_s: Vec<f64>,
+    /// Deviation from the motors-off reference per row (eq. 9), µT: shared by the datasets of
+    /// one recording's inputs ([`Dataset::with_input`]).
+    pub y: Arc<[Vec3]>,
+    /// Time per row, s (shared like `y`).
+    pub t_s: Arc<[f64]>,
     /// The motors-off reference reading, µT.
     pub reference_ut: Vec3,
     /// Rows with all motors off.
@@ -141,7 +144,7 @@ pub struct Dataset {
     groups: std::sync::OnceLock<Option<std::sync::Arc<crate::row_groups::GroupIndex>>>,
     /// The identification split of the rows' times, made on first use; `t_s` must not change
     /// after it.
-    split: std::sync::OnceLock<magstand_core::held_out::Split>,
+    split: std::sync::OnceLock<Arc<magstand_core::held_out::Split>>,
 }
 
 /// A row counts as motors-off when every command is at most this.
@@ -195,6 +198,81 @@ pub fn identification_split(t_s: &[f64]) -> magstand_core::held_out::Split {
     magstand_core::held_out::Split::new(t_s, identification_block_s(t_s), HOLDOUT_EVERY)
 }
 
+/// Whether `rec` has what input `kind` needs: the missing column first, since it is the
+/// user's choice of input that cannot work.
+fn check_input(rec: &Recording, kind: InputKind, origin: &str) -> Result<(), IdentError> {
+    let data_err = |message: &str| IdentError::Data {
+        origin: origin.into(),
+        message: message.into(),
+    };
+    if kind == InputKind::Motors && rec.overall_only {
+        return Err(data_err(
+            "per-motor inputs need thr_1..thr_N columns; the recording has only the overall `thr`",
+        ));
+    }
+    if kind == InputKind::Current && rec.bat_a.is_none() {
+        return Err(data_err(
+            "the current `input` needs a `bat_a` column; the recording has none (use the throttle)",
+        ));
+    }
+    Ok(())
+}
+
+/// Input `kind`'s specification, normalized input and regressors (row-major) for every row
+/// of `rec`, whose motors-off rows are `off`; refused when the input never varies.
+fn inputs(
+    rec: &Recording,
+    kind: InputKind,
+    off: &[usize],
+    origin: &str,
+) -> Result<(InputSpec, Vec<f64>, Vec<f64>), IdentError> {
+    let (lo, hi, off_raw) = match kind {
+        InputKind::Throttle | InputKind::Motors => (0.0, 1.0, 0.0),
+        InputKind::Current => {
+            let a = rec.bat_a.as_ref().ok_or_else(|| IdentError::Data {
+                origin: origin.into(),
+                message: "the current `input` needs a `bat_a` column".into(),
+            })?;
+            let off_a = if off.is_empty() {
+                0.0
+            } else {
+                off.iter().map(|&r| a[r]).sum::<f64>() / off.len() as f64
+            };
+            let max = a.iter().cloned().fold(f64::NEG_INFINITY, f64::max);
+            (0.0, if max > 0.0 { max } else { 1.0 }, off_a)
+        }
+    };
+    let spec = InputSpec {
+        kind,
+        lo,
+        hi,
+        motors: rec.motor_count(),
+        off_raw,
+    };
+    let p = spec.regressor_count();
+    let mut x = vec![0.0; rec.len() * p];
+    let mut u = Vec::with_capacity(rec.len());
+    for r in 0..rec.len() {
+        spec.regressors(rec, r, &mut x[r * p..(r + 1) * p]);
+        u.push(spec.normalize(spec.raw(rec, r)));
+    }
+    let (umin, umax) = u
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
+            (a.min(v), b.max(v))
+        });
+    if umax - umin < 1e-9 {
+        return Err(IdentError::Singular {
+            origin: origin.into(),
+            what: "disturbance model".into(),
+            why: format!(
+                "the input never varies (always {umin:.4}); record the motors over a range of throttle"
+            ),
+        });
+    }
+    Ok((spec, u, x))
+}
+
 /// Minimum rows a fit accepts.
 pub const MIN_ROWS: usize = 20;
 
@@ -229,72 +307,55 @@ impl Dataset {
                 rec.len()
             )));
         }
-        if kind == InputKind::Motors && rec.overall_only {
-            return Err(data_err("per-motor inputs need thr_1..thr_N columns; the recording has only the overall `thr`".into()));
-        }
-        // The missing column first: it is the user's choice of input that cannot work.
-        if kind == InputKind::Current && rec.bat_a.is_none() {
-            return Err(data_err(
-                "the current `input` needs a `bat_a` column; the recording has none (use the throttle)".into(),
-            ));
-        }
+        check_input(rec, kind, origin)?;
         let off = motors_off_rows(rec);
         let reference_ut = motors_off_reference(rec, &off).or(fallback_reference_ut).ok_or_else(|| data_err("no motors-off rows (every thr = 0) to take the eq. 9 reference from; record a few seconds with the motors off (for a flight with its Earth field taken out, one whose input comes down near zero will do)".into()))?;
-        let (lo, hi, off_raw) = match kind {
-            InputKind::Throttle | InputKind::Motors => (0.0, 1.0, 0.0),
-            InputKind::Current => {
-                let a = rec
-                    .bat_a
-                    .as_ref()
-                    .ok_or_else(|| data_err("the current `input` needs a `bat_a` column".into()))?;
-                let off_a = if off.is_empty() {
-                    0.0
-                } else {
-                    off.iter().map(|&r| a[r]).sum::<f64>() / off.len() as f64
-                };
-                let max = a.iter().cloned().fold(f64::NEG_INFINITY, f64::max);
-                (0.0, if max > 0.0 { max } else { 1.0 }, off_a)
-            }
-        };
-        let spec = InputSpec {
-            kind,
-            lo,
-            hi,
-            motors: rec.motor_count(),
-            off_raw,
-        };
-        let p = spec.regressor_count();
-        let mut x = vec![0.0; rec.len() * p];
-        let mut u = Vec::with_capacity(rec.len());
-        for r in 0..rec.len() {
-            spec.regressors(rec, r, &mut x[r * p..(r + 1) * p]);
-            u.push(spec.normalize(spec.raw(rec, r)));
-        }
-        let (umin, umax) = u
-            .iter()
-            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
-                (a.min(v), b.max(v))
-            });
-        if umax - umin < 1e-9 {
-            return Err(IdentError::Singular {
-                origin: origin.into(),
-                what: "disturbance model".into(),
-                why: format!(
-                    "the input never varies (always {umin:.4}); record the motors over a range of throttle"
-                ),
-            });
-        }
+        let (spec, u, x) = inputs(rec, kind, &off, origin)?;
         Ok(Dataset {
             origin: origin.into(),
             spec,
             u,
             x,
             y: rec.mag_ut.iter().map(|m| m - reference_ut).collect(),
-            t_s: rec.t_s.clone(),
+            t_s: rec.t_s.as_slice().into(),
             reference_ut,
             off_rows: off.len(),
             groups: std::sync::OnceLock::new(),
             split: std::sync::OnceLock::new(),
+        })
+    }
+
+    /// The dataset of another input of the same recording `rec` (the one this dataset was built
+    /// from): its own inputs and regressors, this one's deviations, times, reference and
+    /// identification split shared rather than copied (a long log's families then hold one
+    /// copy of them).
+    pub fn with_input(&self, rec: &Recording, kind: InputKind) -> Result<Self, IdentError> {
+        if rec.len() != self.len() || rec.t_s.first() != self.t_s.first() {
+            return Err(IdentError::Data {
+                origin: self.origin.clone(),
+                message: format!(
+                    "another input's data must come from the same recording ({} rows here, {} given)",
+                    self.len(),
+                    rec.len()
+                ),
+            });
+        }
+        check_input(rec, kind, &self.origin)?;
+        let off = motors_off_rows(rec);
+        let (spec, u, x) = inputs(rec, kind, &off, &self.origin)?;
+        // Made here once, so both datasets hold the same split.
+        self.split();
+        Ok(Dataset {
+            origin: self.origin.clone(),
+            spec,
+            u,
+            x,
+            y: Arc::clone(&self.y),
+            t_s: Arc::clone(&self.t_s),
+            reference_ut: self.reference_ut,
+            off_rows: self.off_rows,
+            groups: std::sync::OnceLock::new(),
+            split: self.split.clone(),
         })
     }
 
@@ -333,12 +394,77 @@ impl Dataset {
 
     /// The identification split of the rows ([`identification_split`]), made once.
     pub(crate) fn split(&self) -> &magstand_core::held_out::Split {
-        self.split.get_or_init(|| identification_split(&self.t_s))
+        self.split
+            .get_or_init(|| Arc::new(identification_split(&self.t_s)))
     }
 
     /// Splits rows into identification and held-out sets by time blocks: every fifth block is
     /// held out, so that held-out samples are not neighbours of fitted ones.
     pub fn holdout_mask(&self) -> Vec<bool> {
         self.split().holdout.clone()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A stair of three levels on four motors with unequal commands, its supply current and a
+    /// field growing with the commands; motors off at both ends.
+    fn stair() -> Recording {
+        let n = 600;
+        let level = |r: usize| match r {
+            0..100 | 500.. => 0.0,
+            _ => 0.2 + 0.2 * ((r - 100) / 134) as f64,
+        };
+        let mut rec = Recording {
+            t_s: (0..n).map(|r| r as f64 * 0.02).collect(),
+            thr: (0..4)
+                .map(|m| (0..n).map(|r| level(r) * (1.0 + 0.05 * m as f64)).collect())
+                .collect(),
+            mag_ut: (0..n)
+                .map(|r| Vec3::new(20.0 + 3.0 * level(r), -5.0, 45.0 - level(r).powi(2)))
+                .collect(),
+            ..Recording::default()
+        };
+        rec.bat_a = Some((0..n).map(|r| 0.5 + 40.0 * level(r).powi(2)).collect());
+        rec
+    }
+
+    #[test]
+    fn another_input_shares_the_rows_and_equals_its_own_build() {
+        let rec = stair();
+        let base = Dataset::from_recording(&rec, InputKind::Throttle, "stair").unwrap();
+        for kind in [InputKind::Current, InputKind::Motors] {
+            let shared = base.with_input(&rec, kind).unwrap();
+            let own = Dataset::from_recording(&rec, kind, "stair").unwrap();
+            assert_eq!(shared.spec, own.spec, "{kind:?}");
+            assert_eq!((&shared.u, &shared.x), (&own.u, &own.x), "{kind:?}");
+            assert_eq!((&shared.y, &shared.t_s), (&own.y, &own.t_s), "{kind:?}");
+            assert_eq!(shared.reference_ut, own.reference_ut, "{kind:?}");
+            assert_eq!(shared.holdout_mask(), own.holdout_mask(), "{kind:?}");
+            // One copy of the rows' deviations, times and split.
+            assert!(Arc::ptr_eq(&shared.y, &base.y) && Arc::ptr_eq(&shared.t_s, &base.t_s));
+            assert!(std::ptr::eq(shared.split(), base.split()), "{kind:?}");
+        }
+    }
+
+    #[test]
+    fn another_input_is_refused_as_its_own_build_would_be() {
+        let mut rec = stair();
+        let base = Dataset::from_recording(&rec, InputKind::Throttle, "stair").unwrap();
+        rec.bat_a = None;
+        let shared = base.with_input(&rec, InputKind::Current).unwrap_err();
+        let own = Dataset::from_recording(&rec, InputKind::Current, "stair").unwrap_err();
+        assert_eq!(shared.to_string(), own.to_string());
+        // Another recording's rows are not this dataset's.
+        let short = Recording {
+            t_s: rec.t_s[..300].to_vec(),
+            thr: rec.thr.iter().map(|c| c[..300].to_vec()).collect(),
+            mag_ut: rec.mag_ut[..300].to_vec(),
+            ..Recording::default()
+        };
+        let e = base.with_input(&short, InputKind::Motors).unwrap_err();
+        assert!(e.to_string().contains("same recording"), "{e}");
     }
 }

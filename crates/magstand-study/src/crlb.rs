@@ -74,7 +74,7 @@ pub fn fixed_structure_bound(rec: &Recording) -> Option<Bound> {
     // the value an efficient estimator converges to (the tables themselves when the
     // disturbance has this structure).
     let mut clean = data.clone();
-    clean.y = truth.dist_ut.clone();
+    clean.y = truth.dist_ut.as_slice().into();
     let partition = RbfPartition::paper();
     let inverse_variance = |k: usize| sd[k].map(|s| 1.0 / (s * s));
     let net = local_linear::fit(

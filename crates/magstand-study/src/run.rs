@@ -153,13 +153,17 @@ fn judge(
     let origin = format!("run {run} identification series");
     // The methods on one input share its identification data (and the grouping of its rows):
     // built once per input.
+    // The inputs' datasets share one copy of the deviations, times and split.
     let mut datasets: Vec<(InputKind, Result<Dataset, String>)> = Vec::new();
     for m in &study.methods {
         if let magstand_ident::methods::Fitter::Config(c) = &m.fitter
             && !datasets.iter().any(|(k, _)| *k == c.input)
         {
-            let d = Dataset::from_recording(ident, c.input, &origin).map_err(|e| e.to_string());
-            datasets.push((c.input, d));
+            let d = match datasets.iter().find_map(|(_, d)| d.as_ref().ok()) {
+                Some(first) => first.with_input(ident, c.input),
+                None => Dataset::from_recording(ident, c.input, &origin),
+            };
+            datasets.push((c.input, d.map_err(|e| e.to_string())));
         }
     }
     let dataset_of = |input: InputKind| -> Result<&Dataset, String> {
