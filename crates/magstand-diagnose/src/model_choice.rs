@@ -200,7 +200,9 @@ pub fn choose_model(
             .mag_ut
             .iter()
             .zip(&reading)
-            .map(|(m, r)| m - r)
+            .zip(mask)
+            .filter(|(_, held)| **held)
+            .map(|((m, r), _)| m - r)
             .collect::<Vec<Vec3>>())
     });
     let contenders = vec![

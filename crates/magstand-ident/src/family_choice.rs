@@ -132,16 +132,17 @@ pub struct FamilyChoice {
 /// The rule as stored in [`FamilyChoice::rule`].
 pub const RULE: &str = "lowest held-out error; a family with fewer parameters is kept instead when its held-out loss is within one standard error (paired over held-out blocks) of the lowest";
 
-/// A family to be judged: its id, size, and residuals at every row (only held-out rows are
-/// used), or why it has none.
+/// A family to be judged: its id, size, and residuals at the held-out rows, or why it has
+/// none.
 #[derive(Debug, Clone)]
 pub struct Contender<'r> {
     /// The family.
     pub family: FamilyId,
     /// Parameter count.
     pub parameters: usize,
-    /// Residual at every row of the recording, µT, from a fit that did not see the held-out
-    /// rows; or why the family was not tried or failed.
+    /// Residual at each held-out row of the recording, in row order, µT, from a fit that did
+    /// not see those rows; or why the family was not tried or failed. (Only those rows are
+    /// evidence, and a long log's other rows would cost memory for nothing.)
     pub residuals_ut: Result<Cow<'r, [Vec3]>, String>,
 }
 
@@ -152,10 +153,10 @@ pub fn choose(
     holdout: &[bool],
     block: &[u64],
 ) -> Option<FamilyChoice> {
-    // Held-out blocks in order of appearance, and each row's block index among them.
+    // Held-out blocks in order of appearance, and each held-out row's block index among them.
     let mut ids: Vec<u64> = Vec::new();
-    let mut row_block: Vec<Option<usize>> = vec![None; holdout.len()];
-    for (r, (&h, &b)) in holdout.iter().zip(block).enumerate() {
+    let mut row_block: Vec<usize> = Vec::new();
+    for (&h, &b) in holdout.iter().zip(block) {
         if !h {
             continue;
         }
@@ -166,9 +167,9 @@ pub fn choose(
                 ids.len() - 1
             }
         };
-        row_block[r] = Some(i);
+        row_block.push(i);
     }
-    let held_rows = holdout.iter().filter(|h| **h).count();
+    let held_rows = row_block.len();
     // Per family: per-block mean loss, overall MSE and RMSE per axis.
     struct Scored {
         block_loss: Vec<f64>,
@@ -179,14 +180,16 @@ pub fn choose(
         .iter()
         .map(|c| {
             let r = c.residuals_ut.as_ref().ok()?;
+            // Residuals of other rows than these are not this split's evidence.
+            if r.len() != held_rows {
+                return None;
+            }
             let mut sum = vec![0.0; ids.len()];
             let mut count = vec![0usize; ids.len()];
             let mut axes = Vec3::zeros();
-            for (row, b) in row_block.iter().enumerate() {
-                let Some(b) = b else { continue };
-                let v = r[row];
-                sum[*b] += v.norm_squared();
-                count[*b] += 1;
+            for (v, &b) in r.iter().zip(&row_block) {
+                sum[b] += v.norm_squared();
+                count[b] += 1;
                 axes += v.component_mul(&v);
             }
             let n = held_rows.max(1) as f64;
@@ -323,7 +326,8 @@ mod tests {
         Contender {
             family,
             parameters,
-            residuals_ut: Ok((0..2000)
+            // The 400 held-out rows of `split`.
+            residuals_ut: Ok((0..400)
                 .map(|_| Vec3::new(next(), next(), next()))
                 .collect::<Vec<_>>()
                 .into()),
@@ -358,7 +362,7 @@ mod tests {
         small.family = FamilyId::Throttle;
         small.parameters = 10;
         if let Ok(r) = &mut small.residuals_ut {
-            r.to_mut()[4 * 40] *= 1.01;
+            r.to_mut()[0] *= 1.01;
         }
         let choice = choose(&[large, small], &h, &b).unwrap();
         assert_eq!(choice.chosen, FamilyId::Throttle, "{choice:?}");

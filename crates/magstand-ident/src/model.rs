@@ -363,6 +363,26 @@ impl Model {
             .collect()
     }
 
+    /// The residuals at the rows `rows` selects only, in row order: [`Model::residuals_at`]
+    /// without the zeros elsewhere.
+    pub fn residuals_where(
+        &self,
+        data: &crate::Dataset,
+        rows: &(dyn Fn(usize) -> bool + Sync),
+    ) -> Vec<Vec3> {
+        use rayon::prelude::*;
+        let off = self.off_output(&mut self.scratch());
+        (0..data.len())
+            .into_par_iter()
+            .with_min_len(RESIDUAL_ROWS_PER_TASK)
+            .filter(|&k| rows(k))
+            .map_init(
+                || self.scratch(),
+                |s, k| data.y[k] - (self.output(data.u[k], data.regressors(k), &mut s.phi) - off),
+            )
+            .collect()
+    }
+
     /// Predicted disturbance at a row of a recording: zero with the motors off.
     pub fn dist(&self, rec: &Recording, row: usize, off: Vec3, s: &mut Scratch) -> Vec3 {
         self.input.regressors(rec, row, &mut s.x);
