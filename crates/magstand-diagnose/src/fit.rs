@@ -102,7 +102,6 @@ impl Fitted {
 const PARALLEL_FIT_ROWS: usize = 4096;
 
 /// Fits `design` to `y - fixed` on the rows not held out, per axis, and predicts every row.
-
 pub(crate) fn fit(
     design: &Design,
     y: &[Vec3],

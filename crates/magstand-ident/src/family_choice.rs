@@ -190,7 +190,7 @@ pub fn choose(
             for (v, &b) in r.iter().zip(&row_block) {
                 sum[b] += v.norm_squared();
                 count[b] += 1;
-                axes += v.component_mul(&v);
+                axes += v.component_mul(v);
             }
             let n = held_rows.max(1) as f64;
             let mse = axes.sum() / n;
