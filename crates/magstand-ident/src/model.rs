@@ -346,20 +346,8 @@ impl Model {
         rows: &(dyn Fn(usize) -> bool + Sync),
     ) -> Vec<Vec3> {
         use rayon::prelude::*;
-        let off = self.off_output(&mut self.scratch());
-        (0..data.len())
-            .into_par_iter()
-            .with_min_len(RESIDUAL_ROWS_PER_TASK)
-            .map_init(
-                || self.scratch(),
-                |s, k| {
-                    if rows(k) {
-                        data.y[k] - (self.output(data.u[k], data.regressors(k), &mut s.phi) - off)
-                    } else {
-                        Vec3::zeros()
-                    }
-                },
-            )
+        self.selected_residuals(data, rows)
+            .map(|r| r.unwrap_or_else(Vec3::zeros))
             .collect()
     }
 
@@ -371,16 +359,28 @@ impl Model {
         rows: &(dyn Fn(usize) -> bool + Sync),
     ) -> Vec<Vec3> {
         use rayon::prelude::*;
+        self.selected_residuals(data, rows).flatten().collect()
+    }
+
+    /// Each row's residual where `rows` selects it (`None` elsewhere), on every core.
+    fn selected_residuals<'a>(
+        &'a self,
+        data: &'a crate::Dataset,
+        rows: &'a (dyn Fn(usize) -> bool + Sync),
+    ) -> impl rayon::iter::IndexedParallelIterator<Item = Option<Vec3>> + 'a {
+        use rayon::prelude::*;
         let off = self.off_output(&mut self.scratch());
         (0..data.len())
             .into_par_iter()
             .with_min_len(RESIDUAL_ROWS_PER_TASK)
-            .filter(|&k| rows(k))
             .map_init(
                 || self.scratch(),
-                |s, k| data.y[k] - (self.output(data.u[k], data.regressors(k), &mut s.phi) - off),
+                move |s, k| {
+                    rows(k).then(|| {
+                        data.y[k] - (self.output(data.u[k], data.regressors(k), &mut s.phi) - off)
+                    })
+                },
             )
-            .collect()
     }
 
     /// Predicted disturbance at a row of a recording: zero with the motors off.
