@@ -148,7 +148,7 @@ pub(crate) fn minimize(
     };
     for k in sweeps {
         let grid = grid_along(k, &best_u);
-        let values: Vec<f64> = grid.par_iter().map(|u| eval(u)).collect();
+        let values = coarse_to_fine(grid.len(), |i| eval(&grid[i]));
         for (u, v) in grid.into_iter().zip(values) {
             if v < best {
                 best = v;
@@ -161,6 +161,49 @@ pub(crate) fn minimize(
     }
     polish(searches, best_u, best, &eval)
 }
+
+/// Values of a grid of `n` points where the search needs them, evaluated in parallel: every
+/// other point first, then the two between which the best of those lies, so that the best of
+/// the whole grid is found wherever the objective varies over more than two grid steps (as
+/// the grids here are sized to resolve), for about half the evaluations. The points not
+/// evaluated are infinite. Grids of fewer than [`COARSE_GRID_POINTS`] points are evaluated
+/// whole.
+fn coarse_to_fine(n: usize, f: impl Fn(usize) -> f64 + Sync) -> Vec<f64> {
+    let mut values = vec![f64::INFINITY; n];
+    let evaluate = |values: &mut Vec<f64>, at: Vec<usize>| {
+        let got: Vec<f64> = at.par_iter().map(|&i| f(i)).collect();
+        for (i, v) in at.into_iter().zip(got) {
+            values[i] = v;
+        }
+    };
+    if n < COARSE_GRID_POINTS {
+        evaluate(&mut values, (0..n).collect());
+        return values;
+    }
+    evaluate(&mut values, (0..n).step_by(2).collect());
+    // The first best in grid order, as a scan of the whole grid takes it.
+    let best = (0..n).step_by(2).fold(None, |b: Option<usize>, i| match b {
+        Some(j) if values[j] <= values[i] => Some(j),
+        _ if values[i].is_finite() => Some(i),
+        _ => b,
+    });
+    if let Some(i) = best {
+        evaluate(
+            &mut values,
+            [i.checked_sub(1), Some(i + 1).filter(|&j| j < n)]
+                .into_iter()
+                .flatten()
+                .collect(),
+        );
+    } else {
+        // Nothing could be fitted on the coarse points: the rest may still be.
+        evaluate(&mut values, (1..n).step_by(2).collect());
+    }
+    values
+}
+
+/// Fewest grid points searched coarse to fine ([`coarse_to_fine`]).
+const COARSE_GRID_POINTS: usize = 9;
 
 /// The objective in search coordinates: infinite where the fit fails.
 fn evaluator<'f>(
@@ -309,12 +352,40 @@ mod tests {
         let n = calls.into_inner();
         assert_eq!(o.theta, vec![0.0], "{o:?}");
         assert!(s.at_bound(o.theta[0]));
-        // 9 grid points, the probe, and the curvature's two.
-        assert_eq!(n, 9 + 1 + 2, "{n} evaluations");
+        // The 9-point grid's 5 coarse points and the fine one beside the best, the probe, and
+        // the curvature's two.
+        assert_eq!(n, 5 + 1 + 1 + 2, "{n} evaluations");
         // A minimum just inside the edge is still refined.
         let o = minimize(std::slice::from_ref(&s), |t| Some((t[0] - 0.05).powi(2))).unwrap();
         assert!((o.theta[0] - 0.05).abs() < 1e-3, "{o:?}");
         assert!(!s.at_bound(o.theta[0]));
+    }
+
+    #[test]
+    fn a_coarse_then_fine_grid_finds_the_whole_grids_best_point() {
+        // Minima anywhere on a 31-point grid, on an even or an odd point, at either end, and a
+        // tie (the first in grid order wins, as a scan of the whole grid has it).
+        for at in [0.0, 0.4, 3.0, 14.5, 14.6, 15.0, 29.5, 30.0] {
+            let f = |i: usize| (i as f64 - at).powi(2);
+            let values = coarse_to_fine(31, f);
+            let evaluated = values.iter().filter(|v| v.is_finite()).count();
+            assert!(
+                evaluated <= 16 + 2,
+                "{evaluated} evaluations for a minimum at {at}"
+            );
+            let best = |v: &[f64]| (0..v.len()).fold(0, |b, i| if v[i] < v[b] { i } else { b });
+            let whole: Vec<f64> = (0..31).map(f).collect();
+            assert_eq!(best(&values), best(&whole), "minimum at {at}");
+        }
+        // Small grids are evaluated whole; coarse points that cannot be fitted leave the
+        // others to be tried.
+        assert!(
+            coarse_to_fine(5, |i| i as f64)
+                .iter()
+                .all(|v| v.is_finite())
+        );
+        let v = coarse_to_fine(9, |i| if i % 2 == 0 { f64::INFINITY } else { i as f64 });
+        assert_eq!(v[1], 1.0, "{v:?}");
     }
 
     #[test]
