@@ -6,7 +6,26 @@ use std::ops::{Add, Mul, Sub};
 /// the fraction of the way to the next. Before the first sample it is `(0, 0.0)`, at or after
 /// the last `(last, 0.0)`: a column read through it is held at its ends.
 pub fn locate(t: &[f64], x: f64) -> (usize, f64) {
-    let k = t.partition_point(|&v| v <= x);
+    place(t, t.partition_point(|&v| v <= x), x)
+}
+
+/// [`locate`] of each of the nondecreasing times `xs` (a column's own times moved by a delay)
+/// among the increasing times `t`, walking both once instead of a binary search per time:
+/// the same places.
+pub fn locate_increasing(t: &[f64], xs: impl Iterator<Item = f64>) -> Vec<(usize, f64)> {
+    let mut k = 0;
+    xs.map(|x| {
+        // `k` counts the times at or before `x`, as `locate`'s partition point does.
+        while k < t.len() && t[k] <= x {
+            k += 1;
+        }
+        place(t, k, x)
+    })
+    .collect()
+}
+
+/// The place of `x` given `k`, the number of times in `t` at or before it.
+fn place(t: &[f64], k: usize, x: f64) -> (usize, f64) {
     if k == 0 {
         (0, 0.0)
     } else if k >= t.len() {
@@ -45,5 +64,16 @@ mod tests {
         assert_eq!(interpolate(&v, locate(&t, 1.0)), 20.0);
         assert_eq!(interpolate(&v, locate(&t, -5.0)), 10.0);
         assert_eq!(interpolate(&v, locate(&t, 9.0)), 0.0);
+    }
+
+    #[test]
+    fn walking_the_times_locates_as_the_binary_search_does() {
+        // Uneven times with a repeated one and a gap; places before, inside and after them.
+        let t = [0.0, 0.02, 0.04, 0.04, 0.07, 5.0, 5.02];
+        let xs: Vec<f64> = (-3..=520).map(|i| f64::from(i) * 0.01 - 0.005).collect();
+        let walked = locate_increasing(&t, xs.iter().copied());
+        for (x, w) in xs.iter().zip(&walked) {
+            assert_eq!(*w, locate(&t, *x), "x = {x}");
+        }
     }
 }

@@ -16,7 +16,7 @@
 //! out (`m - R^T e + e`, the reading as if the vehicle sat level facing north) and the inputs
 //! moved by the delay, which the ordinary fit then models as usual. The sensor is assumed
 //! calibrated (soft iron removed), as PX4 and ArduPilot log it.
-use magstand_core::interpolation::{interpolate, locate};
+use magstand_core::interpolation::{interpolate, locate, locate_increasing};
 use magstand_core::{Quat, Recording, Vec3};
 use nalgebra::Matrix3;
 
@@ -104,8 +104,9 @@ pub struct FlightPrep {
 /// Input column at each row, moved later by `delay_s` (linear interpolation over the rows;
 /// held at the start).
 fn delayed(t: &[f64], u: &[f64], delay_s: f64) -> Vec<f64> {
-    t.iter()
-        .map(|&x| interpolate(u, locate(t, x - delay_s)))
+    locate_increasing(t, t.iter().map(|&x| x - delay_s))
+        .into_iter()
+        .map(|place| interpolate(u, place))
         .collect()
 }
 

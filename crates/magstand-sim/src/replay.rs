@@ -15,7 +15,7 @@ use crate::lag::LagFactor;
 use crate::motor::{MotorConstants, MotorParams, MotorState};
 use crate::stand_module::{Electrical, modules};
 use magstand_core::Vec3;
-use magstand_core::interpolation::{interpolate, locate};
+use magstand_core::interpolation::{interpolate, locate_increasing};
 
 /// Longest substep, s: short against the supply's and the board's time constants.
 const MAX_SUBSTEP_S: f64 = 0.01;
@@ -369,40 +369,22 @@ impl Trace {
     /// search over the delay shifts one replay many times).
     pub fn delayed(&self, delay_s: f64) -> Trace {
         let at = locate_increasing(&self.t_s, self.t_s.iter().map(|&t| t - delay_s));
-        let shifted = |col: &Vec<f64>| shifted(col, &at);
+        let shift = |col: &Vec<f64>| shifted(col, &at);
         Trace {
             t_s: self.t_s.clone(),
-            speed: self.speed.iter().map(shifted).collect(),
-            driven: self.driven.iter().map(shifted).collect(),
-            current_a: self.current_a.iter().map(shifted).collect(),
-            total_a: shifted(&self.total_a),
-            voltage_v: shifted(&self.voltage_v),
+            speed: self.speed.iter().map(shift).collect(),
+            driven: self.driven.iter().map(shift).collect(),
+            current_a: self.current_a.iter().map(shift).collect(),
+            total_a: shift(&self.total_a),
+            voltage_v: shift(&self.voltage_v),
             modules: self
                 .modules
                 .iter()
-                .map(|(name, col)| (*name, shifted(col)))
+                .map(|(name, col)| (*name, shift(col)))
                 .collect(),
-            extra_ut: self::shifted(&self.extra_ut, &at),
+            extra_ut: shifted(&self.extra_ut, &at),
         }
     }
-}
-
-/// [`locate`] of each of the nondecreasing times `xs` among the increasing times `t`, walking
-/// both once instead of a binary search per time: the same places.
-fn locate_increasing(t: &[f64], xs: impl Iterator<Item = f64>) -> Vec<(usize, f64)> {
-    let mut k = 0;
-    xs.map(|x| {
-        // `k` counts the times at or before `x`, as `locate`'s partition point does.
-        while k < t.len() && t[k] <= x {
-            k += 1;
-        }
-        if k == 0 || k >= t.len() {
-            locate(t, x)
-        } else {
-            (k - 1, (x - t[k - 1]) / (t[k] - t[k - 1]))
-        }
-    })
-    .collect()
 }
 
 /// The column read at the places `at` (row before, fraction to next), by linear
@@ -512,17 +494,6 @@ mod tests {
             );
         }
         assert_eq!(late.total_a[0], tr.total_a[0]);
-    }
-
-    #[test]
-    fn walking_the_times_locates_as_the_binary_search_does() {
-        // Uneven times with a repeated one and a gap; places before, inside and after them.
-        let t = [0.0, 0.02, 0.04, 0.04, 0.07, 5.0, 5.02];
-        let xs: Vec<f64> = (-3..=520).map(|i| f64::from(i) * 0.01 - 0.005).collect();
-        let walked = locate_increasing(&t, xs.iter().copied());
-        for (x, w) in xs.iter().zip(&walked) {
-            assert_eq!(*w, locate(&t, *x), "x = {x}");
-        }
     }
 
     /// Regression: a log with two flights ten minutes apart was replayed in 0.01 s substeps
