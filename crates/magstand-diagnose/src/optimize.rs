@@ -107,7 +107,15 @@ pub(crate) fn minimize(
     searches: &[Search],
     f: impl Fn(&[f64]) -> Option<f64> + Sync,
 ) -> Option<Optimum> {
-    let eval = evaluator(searches, &f);
+    // The objective in search coordinates: infinite where the fit fails.
+    let eval = |u: &[f64]| -> f64 {
+        let theta: Vec<f64> = searches
+            .iter()
+            .zip(u)
+            .map(|(s, &u)| s.value_at(u))
+            .collect();
+        f(&theta).filter(|v| v.is_finite()).unwrap_or(f64::INFINITY)
+    };
     if searches.is_empty() {
         let value = eval(&[]);
         return value.is_finite().then(|| Optimum {
@@ -204,21 +212,6 @@ fn coarse_to_fine(n: usize, f: impl Fn(usize) -> f64 + Sync) -> Vec<f64> {
 
 /// Fewest grid points searched coarse to fine ([`coarse_to_fine`]).
 const COARSE_GRID_POINTS: usize = 9;
-
-/// The objective in search coordinates: infinite where the fit fails.
-fn evaluator<'f>(
-    searches: &'f [Search],
-    f: &'f (impl Fn(&[f64]) -> Option<f64> + Sync),
-) -> impl Fn(&[f64]) -> f64 + Sync + 'f {
-    move |u: &[f64]| -> f64 {
-        let theta: Vec<f64> = searches
-            .iter()
-            .zip(u)
-            .map(|(s, &u)| s.value_at(u))
-            .collect();
-        f(&theta).filter(|v| v.is_finite()).unwrap_or(f64::INFINITY)
-    }
-}
 
 /// Brent's refinement of each coordinate around `best_u` (value `best`), then each
 /// parameter's uncertainty from the curvature.
