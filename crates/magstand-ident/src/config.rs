@@ -383,8 +383,6 @@ impl ValidFitConfig {
                 local_linear::fit_keeping_equations(data, &part, estimation, rows, weight)?;
             Ok((Structure::LocalLinear(net), equations))
         };
-        let model_of =
-            |s: &Structure| Model::new("", data.spec.clone(), data.reference_ut, s.clone(), None);
         let residual_sd = |s: &Structure| self.residuals_and_noise(data, s, rows);
         let estimation = self.local_estimation();
         let reweight = self.0.weighted && estimation.is_some();
@@ -397,7 +395,7 @@ impl ValidFitConfig {
         // `on` is every row.
         let noise_of = |s: &Structure| -> (Option<SdModel>, Option<Vec<Vec3>>) {
             if sampled {
-                let r = model_of(s).residuals_at(data, &spread);
+                let r = unnamed_model(data, s.clone()).residuals_at(data, &spread);
                 (SdModel::fit(&data.u, &r, spread, self.0.sd_knots), None)
             } else {
                 let (sd, r) = residual_sd(s);
@@ -486,10 +484,10 @@ impl ValidFitConfig {
     /// The fit on every row of the structure a training fit chose. Unweighted, or on a long
     /// recording, its noise weights (none, or settled on tens of thousands of spread rows) are
     /// kept and its normal equations take the rows it left out (`left_out`), so the rows it
-    /// summed are not summed again. On a shorter one the noise model of a few hundred or thousand rows may not carry
-    /// to the rows left out (a spline extrapolated to a tiny sd gives a row all the weight):
-    /// the structure is refitted on every row with its own reweighting, as a stated structure
-    /// would be. `None` when the training fit left nothing to reuse (a polynomial).
+    /// summed are not summed again. On a shorter one the noise model of a few hundred or
+    /// thousand rows may not carry to the rows left out (a spline extrapolated to a tiny sd
+    /// gives a row all the weight): the structure is refitted on every row with its own
+    /// reweighting, as a stated structure would be. `None` when the training fit left nothing to reuse (a polynomial).
     fn refit_every_row(
         &self,
         data: &Dataset,
@@ -549,10 +547,15 @@ impl ValidFitConfig {
         s: &Structure,
         rows: &(dyn Fn(usize) -> bool + Sync),
     ) -> (Option<SdModel>, Vec<Vec3>) {
-        let r =
-            Model::new("", data.spec.clone(), data.reference_ut, s.clone(), None).residuals(data);
+        let r = unnamed_model(data, s.clone()).residuals(data);
         (SdModel::fit(&data.u, &r, rows, self.0.sd_knots), r)
     }
+}
+
+/// A model of structure `s` on `data`'s input, without a name or a noise model: what a fit's
+/// residuals are taken from before the model it keeps is made.
+fn unnamed_model(data: &Dataset, s: Structure) -> Model {
+    Model::new("", data.spec.clone(), data.reference_ut, s, None)
 }
 
 /// Inverse-variance weights per axis at normalized input `u` under `noise` (unit weights
@@ -603,13 +606,7 @@ impl ValidFitConfig {
         let select = self.structure_score_rows(data);
         let train = |k: usize| !holdout[k];
         let fitted = self.fit_rows(data, &train, &select, false)?;
-        let mut train_model = Model::new(
-            "",
-            data.spec.clone(),
-            data.reference_ut,
-            fitted.structure,
-            None,
-        );
+        let mut train_model = unnamed_model(data, fitted.structure);
         // Held-out blocks beyond the training rows' range see the continuation a user's later
         // rows would.
         train_model.identified =
