@@ -181,16 +181,6 @@ pub fn identification_block_s(t_s: &[f64]) -> f64 {
     (span / 50.0).clamp(1e-6, 1.0)
 }
 
-/// The identification split's time block of each of the times `t_s` (ascending, not empty),
-/// of [`identification_block_s`].
-pub fn time_blocks_of(t_s: &[f64]) -> Vec<u64> {
-    identification_split(t_s)
-        .block
-        .into_iter()
-        .map(|b| b as u64)
-        .collect()
-}
-
 /// The identification's held-out split of the times `t_s` (ascending): blocks of
 /// [`identification_block_s`], every [`HOLDOUT_EVERY`]th held out, a gap in the data a block
 /// boundary ([`magstand_core::held_out::Split`], the split the diagnosis uses too).

@@ -67,7 +67,7 @@ pub use config::{
 };
 pub use dataset::{
     Dataset, HOLDOUT_EVERY, InputKind, InputSpec, MIN_ROWS, OFF_COMMAND, identification_block_s,
-    identification_split, motors_off, motors_off_reference, motors_off_rows, time_blocks_of,
+    identification_split, motors_off, motors_off_reference, motors_off_rows,
 };
 pub use error::{FitSetting, IdentError};
 pub use local_linear::{Estimation, LocalLinearNet};

@@ -152,8 +152,7 @@ fn judge(
     };
     let origin = format!("run {run} identification series");
     // The methods on one input share its identification data (and the grouping of its rows):
-    // built once per input.
-    // The inputs' datasets share one copy of the deviations, times and split.
+    // built once per input, every input's sharing one copy of the deviations, times and split.
     let mut datasets: Vec<(InputKind, Result<Dataset, String>)> = Vec::new();
     for m in &study.methods {
         if let magstand_ident::methods::Fitter::Config(c) = &m.fitter
