@@ -176,6 +176,20 @@ impl MotorConstants {
     }
 }
 
+/// `angle % TAU`, the same bits, without the remainder's loop where one turn is taken off
+/// (every step of a rotor below one turn per step): for `TAU <= angle < 2 TAU` the subtraction
+/// is exact (Sterbenz), as the remainder is.
+fn wrap_angle(angle: f64) -> f64 {
+    use std::f64::consts::TAU;
+    if (0.0..TAU).contains(&angle) {
+        angle
+    } else if (TAU..2.0 * TAU).contains(&angle) {
+        angle - TAU
+    } else {
+        angle % TAU
+    }
+}
+
 /// State of one motor: rotor speed and rotor angle (for the imbalance force).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct MotorState {
@@ -213,7 +227,7 @@ impl MotorState {
         alpha: f64,
     ) {
         self.step_electrical_with(p, c, command, voltage_v, alpha);
-        self.angle_rad = (self.angle_rad + self.speed_rad_s * dt_s) % std::f64::consts::TAU;
+        self.angle_rad = wrap_angle(self.angle_rad + self.speed_rad_s * dt_s);
     }
 
     /// Advances speed and current only (not the rotor angle, which only the rigid body
@@ -264,6 +278,24 @@ impl MotorState {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_wrapped_angle_has_the_remainders_bits() {
+        use std::f64::consts::TAU;
+        let mut x = 0.37_f64;
+        for k in 0..100_000 {
+            // Angles below a turn, between one and two, beyond, negative, and the edges.
+            let a = match k % 5 {
+                0 => x * TAU,
+                1 => TAU + x * TAU,
+                2 => 40.0 * x * TAU,
+                3 => -x * TAU,
+                _ => [0.0, TAU, 2.0 * TAU, -0.0, f64::MIN_POSITIVE][k / 5 % 5],
+            };
+            assert_eq!(wrap_angle(a).to_bits(), (a % TAU).to_bits(), "angle {a}");
+            x = (x * 3.9 * (1.0 - x)).clamp(1e-6, 1.0 - 1e-6);
+        }
+    }
 
     #[test]
     fn dead_zone_gives_no_speed_and_no_current() {
