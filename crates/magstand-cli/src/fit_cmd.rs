@@ -417,12 +417,9 @@ fn print_physics(p: &magstand_diagnose::model_choice::PhysicsFit) {
             named.join(", ")
         );
     }
-    let after = d
-        .effects
-        .iter()
-        .rev()
-        .find(|e| e.name != magstand_diagnose::UNEXPLAINED)
-        .map_or(d.baseline.holdout_rmse_ut, |e| e.holdout_rmse_after_ut);
+    // The calibrated model's, with every accepted term: a calibration is a term too, and the
+    // last named effect's figure would leave out the terms after it.
+    let after = d.simulation.holdout_rmse_after_ut;
     println!(
         "{} rows ({} in held-out time blocks); held-out RMSE x {:.3} y {:.3} z {:.3} uT",
         d.settings.rows[0] + d.settings.rows[1],
