@@ -208,3 +208,27 @@ fn a_sagging_battery_is_named_whatever_its_current_law_makes_of_the_voltage() {
         o.diagnosis.summary()
     );
 }
+
+/// Issue 18's accuracy goal on data magstand did not make: the physics model fitted to one
+/// recording of the generator's stand, with no current logged (the generator draws its
+/// current as a power 1.7 of the command, and its field has a term in the square of the
+/// total current, neither of which is the nominal motor's law), predicts the disturbance of
+/// another recording (other seed: other commands, other noise) within 0.015 µT RMS on every
+/// axis, judged against the generator's truth. The seeds are not the report's (101, 102).
+///
+/// Regression: with the current law's shape held to a cubic in speed, the same fit left
+/// 0.031, 0.017 and 0.043 µT: it could not follow the generator's law.
+#[test]
+fn the_physics_fit_follows_a_foreign_current_law_within_15_nt() {
+    use magstand_diagnose::model_choice::{fit_physics, identification_split};
+    use magstand_tests::independent::{Mode, nominal};
+    let (ident, _) = recording(&control(false), 13);
+    let (valid, truth) = recording(&control(false), 14);
+    let split = identification_split(&ident).check().unwrap();
+    let fit = fit_physics(&ident, "ident", &nominal(Mode::Unstated), &split).unwrap();
+    let err = rmse_ut(&fit.model.dist_column(&valid, "valid").unwrap(), &truth);
+    assert!(
+        err.iter().all(|e| *e <= 0.015),
+        "physics fit RMSE against the truth {err:?} µT (goal 0.015 per axis)"
+    );
+}

@@ -340,6 +340,12 @@ impl AugmentedModel {
             flight: false,
             follow_recorded_voltage: self.follow_recorded_voltage,
             follow_recorded_current: self.follow_recorded_current,
+            // The law the model was calibrated with, whatever the new recording's levels.
+            speed_powers: self
+                .columns
+                .iter()
+                .filter(|c| c.starts_with("speed^"))
+                .count(),
             replays: Default::default(),
         };
         // Each effect's parameters as its own search defines them: as many as it searches,

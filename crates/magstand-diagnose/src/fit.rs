@@ -26,32 +26,33 @@ impl Design {
     }
 
     /// The nominal physics: field linear in the motor currents, each motor's current a smooth
-    /// function of its rotor speed while its ESC drives it (idle current, then powers of speed;
-    /// the cubic term lets the calibration follow a current law other than the nominal one) and
-    /// zero while it coasts. Columns are sums over motors, because the nominal stand treats all
-    /// motors alike. With `measured_current`, the trace's supply current is a measured one
-    /// (a flight's `bat_a`), which the commands' speeds only approximate: the field linear in
-    /// it is a column of its own.
-    pub fn baseline(trace: &Trace, measured_current: bool) -> Design {
+    /// function of its rotor speed while its ESC drives it (idle current, then `speed_powers`
+    /// powers of speed: the calibration of a current law other than the nominal one, see
+    /// [`current_law_powers`]) and zero while it coasts. Columns are sums over motors, because
+    /// the nominal stand treats all motors alike. With `measured_current`, the trace's supply
+    /// current is a measured one (a flight's `bat_a`), which the commands' speeds only
+    /// approximate: the field linear in it is a column of its own.
+    pub fn baseline(trace: &Trace, measured_current: bool, speed_powers: usize) -> Design {
         let n = trace.len();
+        let k_max = speed_powers.min(MAX_SPEED_POWERS);
         let mut d = Design::default();
         d.push("reference", vec![1.0; n]);
         // Each row's sums over the motors, motor after motor (the order of a sum per row), a
         // column at a time so that the loops run over contiguous rows; the powers by
         // multiplication (the bits `powi` gives for 2 and 3).
         let mut driven = vec![0.0; n];
-        let mut powers: [Vec<f64>; 3] = std::array::from_fn(|_| vec![0.0; n]);
+        let mut powers: Vec<Vec<f64>> = (0..k_max).map(|_| vec![0.0; n]).collect();
         for (speed, on) in trace.speed.iter().zip(&trace.driven) {
-            let [p1, p2, p3] = &mut powers;
             // Every column of the same length, so the loop runs without bounds checks.
             let (speed, on, driven) = (&speed[..n], &on[..n], &mut driven[..n]);
-            let (p1, p2, p3) = (&mut p1[..n], &mut p2[..n], &mut p3[..n]);
             for r in 0..n {
-                let (s, d) = (speed[r], on[r]);
-                driven[r] += d;
-                p1[r] += d * s;
-                p2[r] += d * (s * s);
-                p3[r] += d * (s * (s * s));
+                driven[r] += on[r];
+            }
+            for (k, column) in powers.iter_mut().enumerate() {
+                let column = &mut column[..n];
+                for r in 0..n {
+                    column[r] += on[r] * speed_power(speed[r], k + 1);
+                }
             }
         }
         d.push("driven", driven);
@@ -72,6 +73,54 @@ impl Design {
     pub fn len(&self) -> usize {
         self.columns.len()
     }
+}
+
+/// `s^k` for `k` in 1..=5, by multiplication (for 2 and 3 the bits of `powi`).
+#[inline(always)]
+fn speed_power(s: f64, k: usize) -> f64 {
+    match k {
+        1 => s,
+        2 => s * s,
+        3 => s * (s * s),
+        4 => (s * s) * (s * s),
+        _ => s * ((s * s) * (s * s)),
+    }
+}
+
+/// The fewest powers of speed in the baseline's current law: the nominal motor's current
+/// goes about as the square of its speed, and a cubic lets the calibration follow a drive
+/// whose current bends otherwise.
+pub(crate) const MIN_SPEED_POWERS: usize = 3;
+
+/// The most powers of speed in the baseline's current law.
+pub(crate) const MAX_SPEED_POWERS: usize = 5;
+
+/// Distinct command levels a recording needs per coefficient of the current law (the idle
+/// current and each power of speed) before the law may take more than the cubic.
+const LEVELS_PER_COEFFICIENT: usize = 4;
+
+/// How many powers of speed the current law of `rec`'s baseline takes: the cubic, and up to
+/// the fifth power where the recording drives its motors at enough distinct commands,
+/// [`LEVELS_PER_COEFFICIENT`] per coefficient of the law. A law with about as many
+/// coefficients as levels would fit any curve through them, and with it take up what a stand
+/// constant acting through those levels does (a dead zone above the stated one on a
+/// ten-step stair): the diagnosis could not name it. With many levels (random steps, a
+/// ramp, a flight) the shape is determined by the data, and a law whose current bends
+/// unlike the nominal motor's (a power 1.7 of the command, a field growing with the square
+/// of the total current) is followed instead of left as structure for a name to take up.
+/// Levels are the distinct mean commands over the motors, to 0.001, where it is above 0.
+pub(crate) fn current_law_powers(thr: &[Vec<f64>]) -> usize {
+    let rows = thr.first().map_or(0, Vec::len);
+    let mut levels: Vec<i64> = (0..rows)
+        .map(|r| thr.iter().map(|c| c[r]).sum::<f64>() / thr.len() as f64)
+        .filter(|m| *m > 0.0 && m.is_finite())
+        .map(|m| (m * 1000.0).round() as i64)
+        .collect();
+    levels.sort_unstable();
+    levels.dedup();
+    (levels.len() / LEVELS_PER_COEFFICIENT)
+        .saturating_sub(1)
+        .clamp(MIN_SPEED_POWERS, MAX_SPEED_POWERS)
 }
 
 /// Inverse noise variance of every row and axis.
@@ -240,6 +289,105 @@ impl VarianceModel {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_current_law_takes_more_powers_only_with_many_command_levels() {
+        // Each level held for 50 rows, all motors alike; the motors-off level does not count.
+        let stair = |levels: usize| -> Vec<Vec<f64>> {
+            let col: Vec<f64> = (0..=levels)
+                .flat_map(|k| std::iter::repeat_n(k as f64 / levels as f64, 50))
+                .collect();
+            vec![col; 4]
+        };
+        for (levels, powers) in [
+            (0, 3),
+            (10, 3),
+            (15, 3),
+            (19, 3),
+            (20, 4),
+            (23, 4),
+            (24, 5),
+            (90, 5),
+        ] {
+            assert_eq!(
+                current_law_powers(&stair(levels)),
+                powers,
+                "{levels} levels"
+            );
+        }
+        // A differential command that leaves the mean alone adds no level; levels closer
+        // than 0.001 are one.
+        let mut t = stair(10);
+        for (r, c) in t[0].iter_mut().enumerate() {
+            if *c > 0.0 {
+                *c += 0.02 * (r % 7) as f64;
+            }
+        }
+        t[1] = t[0].iter().zip(&t[2]).map(|(a, b)| 2.0 * b - a).collect();
+        assert_eq!(current_law_powers(&t), 3);
+        let fine: Vec<f64> = (0..2000).map(|r| 0.5 + 1e-7 * r as f64).collect();
+        assert_eq!(current_law_powers(&[fine]), 3);
+    }
+
+    #[test]
+    fn the_baseline_has_the_powers_asked_for_and_the_cubics_bits() {
+        let n = 64;
+        let speed: Vec<f64> = (0..n).map(|r| (r as f64 * 0.37).sin().abs()).collect();
+        let driven: Vec<f64> = (0..n).map(|r| if r % 5 == 0 { 0.0 } else { 1.0 }).collect();
+        let trace = Trace {
+            t_s: (0..n).map(|r| r as f64).collect(),
+            speed: vec![speed.clone(), speed.clone()],
+            driven: vec![driven.clone(), driven.clone()],
+            current_a: vec![vec![0.0; n]; 2],
+            total_a: vec![0.0; n],
+            voltage_v: vec![0.0; n],
+            modules: Vec::new(),
+            extra_ut: vec![Vec3::zeros(); n],
+        };
+        let d5 = Design::baseline(&trace, false, 5);
+        assert_eq!(
+            d5.names,
+            [
+                "reference",
+                "driven",
+                "speed^1",
+                "speed^2",
+                "speed^3",
+                "speed^4",
+                "speed^5"
+            ]
+        );
+        for r in 0..n {
+            let (s, on) = (speed[r], driven[r]);
+            for (k, expected) in [s, s * s, s * (s * s), (s * s) * (s * s)]
+                .iter()
+                .enumerate()
+            {
+                // Two motors: the same term twice, summed motor after motor.
+                let want = on * expected + on * expected;
+                assert_eq!(
+                    d5.columns[2 + k][r].to_bits(),
+                    want.to_bits(),
+                    "row {r} power {}",
+                    k + 1
+                );
+            }
+            assert!((d5.columns[6][r] - 2.0 * on * s.powi(5)).abs() < 1e-15);
+        }
+        let d3 = Design::baseline(&trace, true, 3);
+        assert_eq!(
+            d3.names,
+            [
+                "reference",
+                "driven",
+                "speed^1",
+                "speed^2",
+                "speed^3",
+                "current_a"
+            ]
+        );
+        assert_eq!(d3.columns[..5], d5.columns[..5]);
+    }
 
     #[test]
     fn recovers_exact_coefficients_and_the_variance_law() {

@@ -82,6 +82,8 @@ pub struct Context<'a> {
     /// measured current is the best account of the current the field follows, so the
     /// current-driven modules (hysteresis, heating) and the current lag follow it.
     pub follow_recorded_current: bool,
+    /// Powers of speed in the baseline's current law (see `current_law_powers`).
+    pub speed_powers: usize,
     /// Replays already made of this recording, reused by the searches.
     pub(crate) replays: crate::pipeline::design::ReplayCache,
 }
@@ -288,6 +290,7 @@ mod tests {
             flight: false,
             follow_recorded_voltage: false,
             follow_recorded_current: false,
+            speed_powers: crate::fit::MIN_SPEED_POWERS,
             replays: Default::default(),
         };
         for e in catalog() {

@@ -265,7 +265,7 @@ fn simulation_rmse(
         logged,
         ctx.command_lead,
     );
-    let design = Design::baseline(&tr, ctx.follow_recorded_current);
+    let design = Design::baseline(&tr, ctx.follow_recorded_current, ctx.speed_powers);
     let f = fit(
         &design,
         &rec.mag_ut,

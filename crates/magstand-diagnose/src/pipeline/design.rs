@@ -134,7 +134,7 @@ pub(crate) fn build_with_lead(ctx: &Context, terms: &[(&dyn Effect, &[f64])], le
     } else {
         &undelayed
     };
-    let mut design = Design::baseline(trace, ctx.follow_recorded_current);
+    let mut design = Design::baseline(trace, ctx.follow_recorded_current, ctx.speed_powers);
     let mut term_columns = Vec::new();
     for (e, theta) in terms {
         let start = design.len();

@@ -87,6 +87,7 @@ pub(crate) fn diagnose_with(
         flight: flight.is_some(),
         follow_recorded_voltage: follow_recorded_voltage && rec.bat_v.is_some(),
         follow_recorded_current,
+        speed_powers: crate::fit::current_law_powers(&rec.thr),
         replays: Default::default(),
     };
     let base = calibrate_baseline(&mut ctx, cfg)?;
