@@ -102,7 +102,10 @@ fn with_current_logged_the_choice_meets_the_goal_on_an_independent_stand() {
 }
 
 /// Without `bat_a` the current family is not tried and says why; the choice still agrees
-/// with the truth's ranking of the families it tried.
+/// with the truth's ranking of the families it tried, and meets issue 18's goal of 0.015 µT
+/// per axis against the truth (the physics family, whose current law follows this
+/// generator's: 0.008, 0.003, 0.007 µT; the best family left 0.049, 0.031, 0.073 µT while
+/// the current law was held to a cubic in speed).
 #[test]
 fn without_current_the_choice_follows_the_truth_ranking() {
     let (mut ident, _) = recording(&control(false), 33);
@@ -132,6 +135,11 @@ fn without_current_the_choice_follows_the_truth_ranking() {
         chosen.family()
     );
     assert_within_truths_best(&by_family, chosen.family());
+    assert!(
+        e.iter().all(|v| *v <= 0.015),
+        "{} chosen: RMSE {e:?} µT against the truth (goal 0.015 per axis)",
+        chosen.family()
+    );
 }
 
 /// A recording that is not from a restrained stand (a flight: its rows marked `flight`, its
