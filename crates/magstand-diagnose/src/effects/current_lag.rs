@@ -2,7 +2,7 @@ use magstand_sim::Scenario;
 
 use magstand_sim::replay::Trace;
 
-use super::{Context, Effect, first_order_lag};
+use super::{Context, Effect, EffectFit, Param, first_order_lag, searched_params};
 use crate::optimize::Search;
 
 /// The slowest spin-up time constant a motor and propeller have, s. Electric multirotor
@@ -29,8 +29,9 @@ impl Effect for CurrentLag {
     }
     fn explanation(&self) -> &'static str {
         "The field follows the current through a first-order lag: behind each command while \
-         the rotors spin up and down, or, on a flight with its current logged, behind the \
-         measured current (eddy currents in nearby metal, a filtered current sensor)."
+         the rotors spin up and down (a lag slower than any spin-up lags the currents' field \
+         itself), or, on a flight with its current logged, behind the measured current (eddy \
+         currents in nearby metal, a filtered current sensor)."
     }
     fn parameters(&self) -> &'static [&'static str] {
         SpinUp::NAMES
@@ -66,9 +67,27 @@ impl Effect for CurrentLag {
         if ctx.follow_recorded_current {
             return;
         }
-        if let Some(p) = SpinUp::from_slice(theta) {
+        // A lag slower than any spin-up is not the rotors': the replay keeps the stand's
+        // spin-up and the field follows the currents through the lag (`field_lag_s`).
+        if let Some(p) = SpinUp::from_slice(theta).filter(|p| p.spinup_tau_s <= MAX_SPINUP_S) {
             s.motors.spinup_tau_s = p.spinup_tau_s;
         }
+    }
+    fn field_lag_s(&self, ctx: &Context, theta: &[f64]) -> Option<f64> {
+        // What lags beyond a spin-up (a filtered current, a slow ESC ramp, a supply that
+        // cannot follow) lags the current itself, and the field linear in it: the current
+        // of a lagged speed is another curve (the current law is not linear in the speed).
+        let tau_s = SpinUp::from_slice(theta)?.spinup_tau_s;
+        (!ctx.follow_recorded_current && tau_s > MAX_SPINUP_S).then_some(tau_s)
+    }
+    fn switch_on(&self, ctx: &Context, scenario: &mut Scenario, fitted: &EffectFit) -> Vec<Param> {
+        // The simulator has no lag of the currents' field: a slow one is written to the
+        // augmented scenario as the nearest physics it can run, a spin-up as slow (the model
+        // file keeps the lag of the field itself).
+        if let Some(p) = SpinUp::from_slice(fitted.theta).filter(|_| !ctx.follow_recorded_current) {
+            scenario.motors.spinup_tau_s = p.spinup_tau_s;
+        }
+        searched_params(&self.search(ctx), fitted)
     }
     fn regressors(&self, ctx: &Context, trace: &Trace, theta: &[f64]) -> Vec<(String, Vec<f64>)> {
         if !ctx.follow_recorded_current {

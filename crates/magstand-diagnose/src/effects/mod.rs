@@ -182,6 +182,13 @@ pub trait Effect: Sync + Send {
         false
     }
 
+    /// A first-order lag, s, that the field of the motor currents follows behind them: the
+    /// baseline's current-law columns (and the per-motor field the scenario fixes) are lagged
+    /// by it. None (the default) for an effect whose physics the replay carries.
+    fn field_lag_s(&self, _ctx: &Context, _theta: &[f64]) -> Option<f64> {
+        None
+    }
+
     /// Regressor columns the effect adds (each gets one coefficient per axis), with names.
     fn regressors(
         &self,
@@ -199,12 +206,18 @@ pub trait Effect: Sync + Send {
     /// as searched, which is all an effect made only of scenario settings needs.
     fn switch_on(&self, ctx: &Context, scenario: &mut Scenario, fitted: &EffectFit) -> Vec<Param> {
         self.apply(ctx, scenario, fitted.theta);
-        self.search(ctx)
-            .iter()
-            .zip(fitted.theta.iter().zip(fitted.theta_sd))
-            .map(|(s, (v, sd))| Param::new(s.name, *v, *sd, s.unit))
-            .collect()
+        searched_params(&self.search(ctx), fitted)
     }
+}
+
+/// The nonlinear parameters of `fitted` reported as `searches` name them, with their
+/// uncertainty.
+pub(crate) fn searched_params(searches: &[Search], fitted: &EffectFit) -> Vec<Param> {
+    searches
+        .iter()
+        .zip(fitted.theta.iter().zip(fitted.theta_sd))
+        .map(|(s, (v, sd))| Param::new(s.name, *v, *sd, s.unit))
+        .collect()
 }
 
 /// Every effect of the catalog, in a fixed order.
@@ -227,6 +240,25 @@ pub fn names() -> Vec<&'static str> {
 
 /// First-order lag of `x` sampled at `t_s` with time constant `tau_s`, starting from zero
 /// (exact for a signal held between samples).
+/// Lags every column of `columns` in place as [`first_order_lag`] does, but from each
+/// column's first value (a run that starts with current flowing starts settled), one lag
+/// factor per row for all of them.
+pub(crate) fn lag_in_place(t_s: &[f64], columns: &mut [&mut [f64]], tau_s: f64) {
+    let mut state: Vec<f64> = columns
+        .iter()
+        .map(|c| c.first().copied().unwrap_or(0.0))
+        .collect();
+    let mut previous: Vec<f64> = state.clone();
+    for r in 1..t_s.len() {
+        let alpha = 1.0 - (-(t_s[r] - t_s[r - 1]) / tau_s).exp();
+        for ((col, s), p) in columns.iter_mut().zip(&mut state).zip(&mut previous) {
+            *s += (*p - *s) * alpha;
+            *p = col[r];
+            col[r] = *s;
+        }
+    }
+}
+
 pub(crate) fn first_order_lag(t_s: &[f64], x: &[f64], tau_s: f64) -> Vec<f64> {
     let mut y = Vec::with_capacity(x.len());
     let mut state = 0.0;
@@ -243,6 +275,41 @@ pub(crate) fn first_order_lag(t_s: &[f64], x: &[f64], tau_s: f64) -> Vec<f64> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_lag_in_place_starts_settled_and_follows_the_exact_first_order_step() {
+        let t_s: Vec<f64> = (0..50)
+            .map(|r| 0.02 * r as f64 + 0.001 * (r % 3) as f64)
+            .collect();
+        let x: Vec<f64> = (0..50).map(|r| if r < 20 { 3.0 } else { 7.0 }).collect();
+        let y: Vec<f64> = (0..50).map(|r| (r as f64 * 0.3).sin()).collect();
+        let (mut a, mut b) = (x.clone(), y.clone());
+        lag_in_place(&t_s, &mut [&mut a, &mut b], 0.1);
+        // From the first value, as the lag from zero of the change plus that value.
+        for (lagged, raw) in [(&a, &x), (&b, &y)] {
+            let change: Vec<f64> = raw.iter().map(|v| v - raw[0]).collect();
+            let reference = first_order_lag(&t_s, &change, 0.1);
+            for r in 0..50 {
+                assert!(
+                    (lagged[r] - (reference[r] + raw[0])).abs() < 1e-12,
+                    "row {r}: {} against {}",
+                    lagged[r],
+                    reference[r] + raw[0]
+                );
+            }
+        }
+        assert_eq!(
+            a[..21],
+            [3.0; 21],
+            "settled before the step, which acts after its row"
+        );
+        let left = (7.0 - a[49]) / 4.0;
+        let expected = (-(t_s[49] - t_s[20]) / 0.1f64).exp();
+        assert!(
+            (left - expected).abs() < 1e-12,
+            "{left} of the step left, {expected} expected"
+        );
+    }
 
     #[test]
     fn catalog_names_are_the_documented_ones() {

@@ -135,6 +135,12 @@ pub(crate) fn build_with_lead(ctx: &Context, terms: &[(&dyn Effect, &[f64])], le
         &undelayed
     };
     let mut design = Design::baseline(trace, ctx.follow_recorded_current, ctx.speed_powers);
+    let mut fixed = trace.extra_ut.clone();
+    for (e, theta) in terms {
+        if let Some(tau_s) = e.field_lag_s(ctx, theta) {
+            lag_current_field(&trace.t_s, &mut design, &mut fixed, tau_s);
+        }
+    }
     let mut term_columns = Vec::new();
     for (e, theta) in terms {
         let start = design.len();
@@ -152,7 +158,7 @@ pub(crate) fn build_with_lead(ctx: &Context, terms: &[(&dyn Effect, &[f64])], le
         .max(1e-9);
     Built {
         design,
-        fixed: trace.extra_ut.clone(),
+        fixed,
         load: trace
             .total_a
             .iter()
@@ -160,6 +166,25 @@ pub(crate) fn build_with_lead(ctx: &Context, terms: &[(&dyn Effect, &[f64])], le
             .collect(),
         full_load_a: max_a,
         term_columns,
+    }
+}
+
+/// Lags the field of the motor currents by `tau_s`: the baseline's current-law columns (all
+/// but the motors-off `reference` and a measured `current_a`) and the per-motor field the
+/// scenario fixes.
+fn lag_current_field(t_s: &[f64], design: &mut Design, fixed: &mut [Vec3], tau_s: f64) {
+    let mut xyz: [Vec<f64>; 3] = std::array::from_fn(|a| fixed.iter().map(|v| v[a]).collect());
+    let mut columns: Vec<&mut [f64]> = design
+        .names
+        .iter()
+        .zip(design.columns.iter_mut())
+        .filter(|(name, _)| *name != "reference" && *name != "current_a")
+        .map(|(_, c)| c.as_mut_slice())
+        .collect();
+    columns.extend(xyz.iter_mut().map(|c| c.as_mut_slice()));
+    crate::effects::lag_in_place(t_s, &mut columns, tau_s);
+    for (r, v) in fixed.iter_mut().enumerate() {
+        *v = Vec3::new(xyz[0][r], xyz[1][r], xyz[2][r]);
     }
 }
 
