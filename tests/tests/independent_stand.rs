@@ -239,3 +239,33 @@ fn the_physics_fit_follows_a_foreign_current_law_within_15_nt() {
         "physics fit RMSE against the truth {err:?} µT (goal 0.015 per axis)"
     );
 }
+
+/// Regression: with `bat_v` logged, the battery reported beside `battery_sag` kept the
+/// nominal 12 V supply's three cells, full, whatever the log said. On the generator's 4S
+/// pack (16.8 V full, 0.045 ohm) its resistance and capacity went to the ends of their search
+/// ranges (0.003 ohm, 30 Ah). The pack now follows the logged voltage.
+#[test]
+fn the_reported_battery_is_the_logged_pack() {
+    use magstand_tests::independent::{Mode, run_case};
+    let case = Case {
+        label: "battery sag",
+        effects: vec![magstand_standgen::Effect::BatterySag],
+        log_bat_v: true,
+        log_temp: false,
+    };
+    let o = run_case(&case, Mode::Unstated, 1);
+    let sag = o
+        .diagnosis
+        .effects
+        .iter()
+        .find(|e| e.name == "battery_sag")
+        .unwrap_or_else(|| panic!("battery_sag not named: {:?}", o.verdict));
+    let param = |name: &str| sag.params.iter().find(|p| p.name == name).map(|p| p.value);
+    assert_eq!(param("cells"), Some(4.0), "{:?}", sag.params);
+    let r = param("internal_resistance_ohm").unwrap();
+    assert!(
+        (0.02..0.09).contains(&r),
+        "internal resistance {r} ohm, generated 0.045 ohm: {:?}",
+        sag.params
+    );
+}

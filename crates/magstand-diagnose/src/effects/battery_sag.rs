@@ -1,5 +1,5 @@
 use magstand_sim::Scenario;
-use magstand_sim::battery::SupplyParams;
+use magstand_sim::battery::{SupplyParams, lipo_cell_ocv_v};
 use magstand_sim::replay::{Trace, replay};
 
 use super::{Context, Effect, EffectFit, Param};
@@ -39,21 +39,51 @@ fn searches() -> Vec<Search> {
     ]
 }
 
-/// Cells of the battery standing in for the nominal supply: the nominal battery's, or the
-/// number whose nominal 3.9 V per cell is nearest the bench voltage.
-fn cells(nominal: &Scenario) -> u32 {
-    match nominal.supply {
-        SupplyParams::Battery { cells, .. } => cells,
-        SupplyParams::Bench { voltage_v, .. } => ((voltage_v / 3.9).round() as u32).clamp(1, 14),
+/// The battery standing in for the supply: cells in series and the charge it starts with.
+/// With `bat_v` logged, the pack the highest logged voltage implies (cells at a nominal 3.9 V
+/// each, the charge at which that many cells rest at that voltage): a 4S pack logged at
+/// 16.8 V is not the nominal 12 V supply's 3S. Otherwise the nominal battery's cells, or the
+/// number whose 3.9 V per cell is nearest the bench voltage, full.
+fn pack(ctx: &Context) -> (u32, f64) {
+    let cells_at = |v: f64| ((v / 3.9).round() as u32).clamp(1, 14);
+    let logged_max = ctx
+        .rec
+        .bat_v
+        .as_deref()
+        .and_then(|v| v.iter().copied().filter(|x| x.is_finite()).reduce(f64::max))
+        .filter(|v| *v > 0.0);
+    match (logged_max, &ctx.nominal.supply) {
+        (Some(v), _) => {
+            let cells = cells_at(v);
+            (cells, charge_resting_at(v / cells as f64))
+        }
+        (None, SupplyParams::Battery { cells, .. }) => (*cells, 1.0),
+        (None, SupplyParams::Bench { voltage_v, .. }) => (cells_at(*voltage_v), 1.0),
     }
 }
 
+/// The state of charge at which a LiPo cell rests at `cell_v` (0 below the empty cell's
+/// voltage, 1 above the full one's), by bisection of the simulator's curve.
+fn charge_resting_at(cell_v: f64) -> f64 {
+    let (mut lo, mut hi) = (0.0, 1.0);
+    for _ in 0..50 {
+        let mid = 0.5 * (lo + hi);
+        if lipo_cell_ocv_v(mid) < cell_v {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    0.5 * (lo + hi)
+}
+
 fn set_battery(ctx: &Context, s: &mut Scenario, b: Battery) {
+    let (cells, initial_charge) = pack(ctx);
     s.supply = SupplyParams::Battery {
-        cells: cells(ctx.nominal),
+        cells,
         capacity_ah: b.capacity_ah,
         internal_resistance_ohm: b.internal_resistance_ohm,
-        initial_charge: 1.0,
+        initial_charge,
         avionics_current_a: ctx.nominal.supply.avionics_current_a(),
     };
 }
@@ -155,7 +185,35 @@ impl Effect for BatterySag {
                 "ohm",
             ),
             Param::new("capacity_ah", b.capacity_ah, sd.capacity_ah, "Ah"),
-            Param::new("cells", cells(ctx.nominal) as f64, None, "cells in series"),
+            Param::new("cells", pack(ctx).0 as f64, None, "cells in series"),
         ]
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Regression: with `bat_v` logged, the battery reported beside `battery_sag` had the
+    /// nominal 12 V supply's three cells, full, whatever the log said; on a 4S pack logged at
+    /// 16.8 V its resistance and capacity went to the ends of their ranges (0.003 ohm, 30 Ah).
+    #[test]
+    fn a_logged_voltage_gives_its_packs_cells_and_charge() {
+        for (v, soc) in [
+            (4.2, 1.0),
+            (3.84, 0.5),
+            (3.69, 0.1),
+            (3.27, 0.0),
+            (3.0, 0.0),
+            (4.5, 1.0),
+        ] {
+            let c = charge_resting_at(v);
+            assert!(
+                (c - soc).abs() < 1e-9,
+                "{v} V per cell: charge {c}, expected {soc}"
+            );
+        }
+        let mid = charge_resting_at(3.855);
+        assert!((lipo_cell_ocv_v(mid) - 3.855).abs() < 1e-9, "{mid}");
     }
 }
