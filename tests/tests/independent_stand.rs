@@ -269,3 +269,33 @@ fn the_reported_battery_is_the_logged_pack() {
         sag.params
     );
 }
+
+/// Regression: a 0.3 s late magnetometer stream was reported as 0.287 ± 0.0001 s. The
+/// generator logs each command after it acted; the lead the baseline calibrates on the
+/// delayed data takes the other reading (a command acts from its own row on), and the two
+/// differ by one sample interval (13 ms at 75 Hz), which the data cannot tell apart. The
+/// reported uncertainty now holds that interval: the truth lies within 3 sd.
+#[test]
+fn a_late_magnetometer_is_reported_with_the_command_timings_ambiguity() {
+    use magstand_tests::independent::{Mode, run_case};
+    let case = Case {
+        label: "time offset 0.3 s",
+        effects: vec![magstand_standgen::Effect::TimeOffset { delay_s: 0.3 }],
+        log_bat_v: false,
+        log_temp: false,
+    };
+    let o = run_case(&case, Mode::Stated, 1);
+    let p = o
+        .diagnosis
+        .effects
+        .iter()
+        .find(|e| e.name == "time_offset")
+        .and_then(|e| e.params.first())
+        .unwrap_or_else(|| panic!("time_offset not named: {:?}", o.verdict));
+    let sd = p.sd.expect("an uncertainty");
+    assert!(
+        (p.value - 0.3).abs() < 3.0 * sd && sd < 0.02,
+        "delay {} ± {sd} s, generated 0.3 s",
+        p.value
+    );
+}

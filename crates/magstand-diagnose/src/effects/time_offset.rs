@@ -1,6 +1,6 @@
 use magstand_sim::Scenario;
 
-use super::{Context, Effect};
+use super::{Context, Effect, EffectFit, Param};
 use crate::optimize::Search;
 
 /// The magnetometer stream is logged late against the command stream.
@@ -47,5 +47,24 @@ impl Effect for TimeOffset {
         if let Some(p) = Delay::from_slice(theta) {
             s.logging.mag_delay_s = p.mag_delay_s;
         }
+    }
+    fn switch_on(&self, ctx: &Context, scenario: &mut Scenario, fitted: &EffectFit) -> Vec<Param> {
+        self.apply(ctx, scenario, fitted.theta);
+        // A log does not say whether a logged command acted from its own row on or had
+        // already acted when it was logged (the lead the baseline calibrates on delayed
+        // data takes either end): the two readings of one recording differ in the delay by
+        // one sample interval. The reported uncertainty holds that ambiguity, a uniform
+        // spread of one interval either way, beside the fit's own.
+        let dt = ctx.rec.typical_interval_s();
+        let Some(p) = Delay::from_slice(fitted.theta) else {
+            return Vec::new();
+        };
+        let sd = fitted
+            .theta_sd
+            .first()
+            .copied()
+            .flatten()
+            .map(|sd| (sd * sd + dt * dt / 3.0).sqrt());
+        vec![Param::new("mag_delay_s", p.mag_delay_s, sd, "s")]
     }
 }
