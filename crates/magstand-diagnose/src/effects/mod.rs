@@ -182,6 +182,13 @@ pub trait Effect: Sync + Send {
         false
     }
 
+    /// Whether the recording can tell the stand constant at `fitted` from the `stated` one
+    /// by more than the calibrated shape of the current law (see
+    /// [`Effect::stand_constant`]). By default it can.
+    fn separable_from_stated(&self, _ctx: &Context, _stated: f64, _fitted: f64) -> bool {
+        true
+    }
+
     /// A first-order lag, s, that the field of the motor currents follows behind them: the
     /// baseline's current-law columns (and the per-motor field the scenario fixes) are lagged
     /// by it. None (the default) for an effect whose physics the replay carries.

@@ -146,6 +146,16 @@ fn refuse_within_stated(c: &mut Candidate, effect: &dyn Effect, ctx: &Context) {
         .copied()
         .flatten()
         .is_some_and(|sd| (theta[0] - stated).abs() > REJECT_STATED_SD * sd);
+    if rejects && !effect.separable_from_stated(ctx, stated, theta[0]) {
+        c.result.note = Some(format!(
+            "fitted {key} = {} differs from the stated {stated} only in a way the calibrated \
+             current law takes up as well (no logged command lies between the two): the data \
+             do not reject the statement",
+            crate::diagnosis::value_with_sd(theta[0], sd.first().copied().flatten())
+        ));
+        c.result.p_value = None;
+        return;
+    }
     if !rejects {
         let shown = sd.first().copied().flatten();
         c.result.note = Some(format!(
