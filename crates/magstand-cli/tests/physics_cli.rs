@@ -3,27 +3,14 @@
 //! what it cannot be (code over one input, a line without rows, an update by --adapt) is
 //! refused by name with nothing written.
 mod common;
-use common::magstand;
+use common::{magstand, simulate_bench_stair};
 
 #[test]
 fn a_physics_model_compensates_and_exports_over_a_recordings_rows() {
     let dir = tempfile::tempdir().unwrap();
     let p = |s: &str| dir.path().join(s).to_str().unwrap().to_string();
     for (out, seed) in [("a", "1"), ("b", "2")] {
-        let r = magstand(&[
-            "simulate",
-            "--scenario",
-            "builtin:bench-supply-stair",
-            "--out",
-            &p(out),
-            "--seed",
-            seed,
-            "--set",
-            "program.dwell_s=2.0",
-            "--set",
-            "stand.enabled=false",
-        ]);
-        assert!(r.ok, "{}", r.stderr);
+        simulate_bench_stair(&p(out), Some(seed), &[]);
     }
     let (ident, valid) = (p("a/recording.csv"), p("b/recording.csv"));
     let model = p("physics.json");

@@ -3,24 +3,13 @@
 //! PX4 has (a wrong firmware parameter). The settings are now checked once, before any model
 //! is read, for every kind of model.
 mod common;
-use common::magstand;
+use common::{magstand, simulate_bench_stair};
 
 #[test]
 fn a_physics_export_refuses_an_instance_the_autopilot_does_not_have() {
     let dir = tempfile::tempdir().unwrap();
     let p = |s: &str| dir.path().join(s).to_str().unwrap().to_string();
-    let r = magstand(&[
-        "simulate",
-        "--scenario",
-        "builtin:bench-supply-stair",
-        "--out",
-        &p("a"),
-        "--set",
-        "program.dwell_s=2.0",
-        "--set",
-        "stand.enabled=false",
-    ]);
-    assert!(r.ok, "{}", r.stderr);
+    simulate_bench_stair(&p("a"), None, &[]);
     let rec = p("a/recording.csv");
     let model = p("physics.json");
     let r = magstand(&[

@@ -5,28 +5,13 @@
 //! held-out error is 0.645 µT, on a stand whose noise is 0.585 µT RMS. The figure is now the
 //! calibrated model's, with every accepted term.
 mod common;
-use common::magstand;
+use common::{magstand, simulate_bench_stair};
 
 #[test]
 fn the_printed_held_out_error_is_the_calibrated_models() {
     let dir = tempfile::tempdir().unwrap();
     let p = |s: &str| dir.path().join(s).to_str().unwrap().to_string();
-    let r = magstand(&[
-        "simulate",
-        "--scenario",
-        "builtin:bench-supply-stair",
-        "--out",
-        &p("a"),
-        "--seed",
-        "1",
-        "--set",
-        "program.dwell_s=2.0",
-        "--set",
-        "stand.enabled=false",
-        "--set",
-        "motors.dead_zone=0.05",
-    ]);
-    assert!(r.ok, "{}", r.stderr);
+    simulate_bench_stair(&p("a"), Some("1"), &["motors.dead_zone=0.05"]);
     let recording = p("a/recording.csv");
     let r = magstand(&[
         "fit",

@@ -45,6 +45,33 @@ pub fn simulate_quick_tables(out: &str) {
     assert!(r.ok, "{}", r.stderr);
 }
 
+/// Simulates a short bench-supply stair (2 s dwell, no rigid body) with `seed` (the
+/// scenario's own where None) and the extra
+/// `key=value` settings `sets` into `out`, failing the test if it does not succeed: a quick
+/// stand recording for the physics fit.
+#[allow(dead_code)] // not every test file needs a stand recording
+pub fn simulate_bench_stair(out: &str, seed: Option<&str>, sets: &[&str]) {
+    let mut args = vec![
+        "simulate",
+        "--scenario",
+        "builtin:bench-supply-stair",
+        "--out",
+        out,
+        "--set",
+        "program.dwell_s=2.0",
+        "--set",
+        "stand.enabled=false",
+    ];
+    if let Some(seed) = seed {
+        args.extend(["--seed", seed]);
+    }
+    for set in sets {
+        args.extend(["--set", set]);
+    }
+    let r = magstand(&args);
+    assert!(r.ok, "{}", r.stderr);
+}
+
 /// The path of `name` in the repository's `tests/data/<folder>` (real logs, bad inputs).
 #[allow(dead_code)] // not every test file reads checked-in data
 pub fn test_data(folder: &str, name: &str) -> String {
