@@ -48,10 +48,16 @@ impl Design {
             for r in 0..n {
                 driven[r] += on[r];
             }
-            for (k, column) in powers.iter_mut().enumerate() {
-                let column = &mut column[..n];
-                for r in 0..n {
-                    column[r] += on[r] * speed_power(speed[r], k + 1);
+            match powers.as_mut_slice() {
+                [p1, p2, p3, p4, p5] => add_powers(speed, on, [p1, p2, p3, p4, p5]),
+                [p1, p2, p3, p4] => add_powers(speed, on, [p1, p2, p3, p4]),
+                [p1, p2, p3] => add_powers(speed, on, [p1, p2, p3]),
+                other => {
+                    for (k, column) in other.iter_mut().enumerate() {
+                        for (c, (&s, &d)) in column.iter_mut().zip(speed.iter().zip(on)) {
+                            *c += d * speed_power(s, k + 1);
+                        }
+                    }
                 }
             }
         }
@@ -72,6 +78,21 @@ impl Design {
 
     pub fn len(&self) -> usize {
         self.columns.len()
+    }
+}
+
+/// Adds one motor's `driven * speed^k` to the columns of the first `K` powers, in one pass
+/// over the rows (the bits of [`speed_power`]).
+fn add_powers<const K: usize>(speed: &[f64], on: &[f64], columns: [&mut Vec<f64>; K]) {
+    let n = speed.len();
+    let mut columns = columns.map(|c| &mut c[..n]);
+    for r in 0..n {
+        let (s, d) = (speed[r], on[r]);
+        let s2 = s * s;
+        let values = [s, s2, s * s2, s2 * s2, s * (s2 * s2)];
+        for (column, v) in columns.iter_mut().zip(values) {
+            column[r] += d * v;
+        }
     }
 }
 
