@@ -71,6 +71,17 @@ impl Design {
         d
     }
 
+    /// The columns of the baseline's current law, the field of the commanded motor currents
+    /// (every column but the motors-off `reference` and a measured `current_a`), for a lag
+    /// of that field.
+    pub fn current_law_columns_mut(&mut self) -> impl Iterator<Item = &mut [f64]> {
+        self.names
+            .iter()
+            .zip(self.columns.iter_mut())
+            .filter(|(name, _)| *name != "reference" && *name != "current_a")
+            .map(|(_, c)| c.as_mut_slice())
+    }
+
     pub fn push(&mut self, name: impl Into<String>, column: Vec<f64>) {
         self.names.push(name.into());
         self.columns.push(column);
@@ -88,10 +99,8 @@ fn add_powers<const K: usize>(speed: &[f64], on: &[f64], columns: [&mut Vec<f64>
     let mut columns = columns.map(|c| &mut c[..n]);
     for r in 0..n {
         let (s, d) = (speed[r], on[r]);
-        let s2 = s * s;
-        let values = [s, s2, s * s2, s2 * s2, s * (s2 * s2)];
-        for (column, v) in columns.iter_mut().zip(values) {
-            column[r] += d * v;
+        for (k, column) in columns.iter_mut().enumerate() {
+            column[r] += d * speed_power(s, k + 1);
         }
     }
 }

@@ -77,8 +77,8 @@ fn charge_resting_at(cell_v: f64) -> f64 {
     0.5 * (lo + hi)
 }
 
-fn set_battery(ctx: &Context, s: &mut Scenario, b: Battery) {
-    let (cells, initial_charge) = pack(ctx);
+/// Puts the battery `b` of `(cells, initial_charge)` ([`pack`]) in for the supply.
+fn set_battery(ctx: &Context, (cells, initial_charge): (u32, f64), s: &mut Scenario, b: Battery) {
     s.supply = SupplyParams::Battery {
         cells,
         capacity_ah: b.capacity_ah,
@@ -97,9 +97,10 @@ impl BatterySag {
         s: &Scenario,
     ) -> Option<(Battery, Battery<Option<f64>>)> {
         let v = ctx.rec.bat_v.as_deref()?;
+        let logged_pack = pack(ctx);
         let o = minimize(&searches(), |theta| {
             let mut b = s.clone();
-            set_battery(ctx, &mut b, Battery::from_slice(theta)?);
+            set_battery(ctx, logged_pack, &mut b, Battery::from_slice(theta)?);
             let tr = replay(&b, &ctx.rec.t_s, &ctx.rec.thr, None, ctx.command_lead);
             Some(
                 tr.voltage_v
@@ -135,7 +136,7 @@ impl Effect for BatterySag {
         if ctx.rec.bat_v.is_none()
             && let Some(b) = Battery::from_slice(theta)
         {
-            set_battery(ctx, s, b);
+            set_battery(ctx, pack(ctx), s, b);
         }
     }
     fn uses_recorded_voltage(&self, ctx: &Context) -> bool {
@@ -176,7 +177,8 @@ impl Effect for BatterySag {
         let Some((b, sd)) = fitted else {
             return Vec::new();
         };
-        set_battery(ctx, s, b);
+        let pack = pack(ctx);
+        set_battery(ctx, pack, s, b);
         vec![
             Param::new(
                 "internal_resistance_ohm",
@@ -185,7 +187,7 @@ impl Effect for BatterySag {
                 "ohm",
             ),
             Param::new("capacity_ah", b.capacity_ah, sd.capacity_ah, "Ah"),
-            Param::new("cells", pack(ctx).0 as f64, None, "cells in series"),
+            Param::new("cells", pack.0 as f64, None, "cells in series"),
         ]
     }
 }

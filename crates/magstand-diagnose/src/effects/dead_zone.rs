@@ -38,17 +38,19 @@ impl Effect for DeadZone {
     fn stand_constant(&self, ctx: &Context) -> Option<(&'static str, f64)> {
         Some(("motors.dead_zone", ctx.nominal.motors.dead_zone))
     }
-    fn separable_from_stated(&self, ctx: &Context, stated: f64, fitted: f64) -> bool {
+    fn inseparable_from_stated(&self, ctx: &Context, stated: f64, fitted: f64) -> Option<String> {
         // A dead zone is which commands drive the motors. Two of them differ in the rows
         // whose command lies between them (driven under one, not the other); where none
         // does, they differ only in how a command maps to speed above both, which the
         // current law's calibrated shape takes up as well: the data cannot reject the
         // statement for the dead zone itself.
         let (lo, hi) = (stated.min(fitted), stated.max(fitted));
-        ctx.rec
-            .thr
-            .iter()
-            .any(|motor| motor.iter().any(|&c| c > lo && c <= hi))
+        let between = |motor: &Vec<f64>| motor.iter().any(|&c| c > lo && c <= hi);
+        (!ctx.rec.thr.iter().any(between)).then(|| {
+            "no logged command lies between the two, so they differ only in how a command maps \
+             to speed above both, which the calibrated current law takes up as well"
+                .to_string()
+        })
     }
     fn apply(&self, _ctx: &Context, s: &mut Scenario, theta: &[f64]) {
         if let Some(p) = Start::from_slice(theta) {

@@ -182,11 +182,16 @@ pub trait Effect: Sync + Send {
         false
     }
 
-    /// Whether the recording can tell the stand constant at `fitted` from the `stated` one
-    /// by more than the calibrated shape of the current law (see
-    /// [`Effect::stand_constant`]). By default it can.
-    fn separable_from_stated(&self, _ctx: &Context, _stated: f64, _fitted: f64) -> bool {
-        true
+    /// Why the recording cannot tell the stand constant at `fitted` from the `stated` one by
+    /// more than the calibrated shape of the current law (see [`Effect::stand_constant`]),
+    /// or None where it can (the default).
+    fn inseparable_from_stated(
+        &self,
+        _ctx: &Context,
+        _stated: f64,
+        _fitted: f64,
+    ) -> Option<String> {
+        None
     }
 
     /// A first-order lag, s, that the field of the motor currents follows behind them: the
@@ -247,36 +252,44 @@ pub fn names() -> Vec<&'static str> {
 
 /// First-order lag of `x` sampled at `t_s` with time constant `tau_s`, starting from zero
 /// (exact for a signal held between samples).
+pub(crate) fn first_order_lag(t_s: &[f64], x: &[f64], tau_s: f64) -> Vec<f64> {
+    let mut y = x.to_vec();
+    lag_columns(t_s, &mut [&mut y], tau_s, false);
+    y
+}
+
 /// Lags every column of `columns` in place as [`first_order_lag`] does, but from each
-/// column's first value (a run that starts with current flowing starts settled), one lag
-/// factor per row for all of them.
+/// column's first value (a run that starts with current flowing starts settled).
 pub(crate) fn lag_in_place(t_s: &[f64], columns: &mut [&mut [f64]], tau_s: f64) {
-    let mut state: Vec<f64> = columns
+    lag_columns(t_s, columns, tau_s, true);
+}
+
+/// The first-order lag of every column in place, each held between samples, one lag factor
+/// per row for all of them; from each column's first value when `settled`, else from zero.
+fn lag_columns(t_s: &[f64], columns: &mut [&mut [f64]], tau_s: f64, settled: bool) {
+    let n = columns.iter().map(|c| c.len()).fold(t_s.len(), usize::min);
+    let mut previous: Vec<f64> = columns
         .iter()
         .map(|c| c.first().copied().unwrap_or(0.0))
         .collect();
-    let mut previous: Vec<f64> = state.clone();
-    for r in 1..t_s.len() {
-        let alpha = 1.0 - (-(t_s[r] - t_s[r - 1]) / tau_s).exp();
+    let mut state: Vec<f64> = if settled {
+        previous.clone()
+    } else {
+        vec![0.0; columns.len()]
+    };
+    for (col, s) in columns.iter_mut().zip(&state) {
+        if let Some(first) = col.first_mut() {
+            *first = *s;
+        }
+    }
+    for r in 1..n {
+        let alpha = magstand_sim::lag::lag_factor(t_s[r] - t_s[r - 1], tau_s);
         for ((col, s), p) in columns.iter_mut().zip(&mut state).zip(&mut previous) {
             *s += (*p - *s) * alpha;
             *p = col[r];
             col[r] = *s;
         }
     }
-}
-
-pub(crate) fn first_order_lag(t_s: &[f64], x: &[f64], tau_s: f64) -> Vec<f64> {
-    let mut y = Vec::with_capacity(x.len());
-    let mut state = 0.0;
-    for r in 0..x.len() {
-        if r > 0 {
-            let dt = t_s[r] - t_s[r - 1];
-            state += (x[r - 1] - state) * (1.0 - (-dt / tau_s).exp());
-        }
-        y.push(state);
-    }
-    y
 }
 
 #[cfg(test)]

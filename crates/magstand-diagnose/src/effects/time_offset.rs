@@ -1,6 +1,6 @@
 use magstand_sim::Scenario;
 
-use super::{Context, Effect, EffectFit, Param};
+use super::{Context, Effect, EffectFit, Param, searched_params};
 use crate::optimize::Search;
 
 /// The magnetometer stream is logged late against the command stream.
@@ -56,15 +56,10 @@ impl Effect for TimeOffset {
         // one sample interval. The reported uncertainty holds that ambiguity, a uniform
         // spread of one interval either way, beside the fit's own.
         let dt = ctx.rec.typical_interval_s();
-        let Some(p) = Delay::from_slice(fitted.theta) else {
-            return Vec::new();
-        };
-        let sd = fitted
-            .theta_sd
-            .first()
-            .copied()
-            .flatten()
-            .map(|sd| (sd * sd + dt * dt / 3.0).sqrt());
-        vec![Param::new("mag_delay_s", p.mag_delay_s, sd, "s")]
+        let mut params = searched_params(&self.search(ctx), fitted);
+        for p in &mut params {
+            p.sd = p.sd.map(|sd| (sd * sd + dt * dt / 3.0).sqrt());
+        }
+        params
     }
 }

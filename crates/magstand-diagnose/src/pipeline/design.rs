@@ -174,13 +174,7 @@ pub(crate) fn build_with_lead(ctx: &Context, terms: &[(&dyn Effect, &[f64])], le
 /// scenario fixes.
 fn lag_current_field(t_s: &[f64], design: &mut Design, fixed: &mut [Vec3], tau_s: f64) {
     let mut xyz: [Vec<f64>; 3] = std::array::from_fn(|a| fixed.iter().map(|v| v[a]).collect());
-    let mut columns: Vec<&mut [f64]> = design
-        .names
-        .iter()
-        .zip(design.columns.iter_mut())
-        .filter(|(name, _)| *name != "reference" && *name != "current_a")
-        .map(|(_, c)| c.as_mut_slice())
-        .collect();
+    let mut columns: Vec<&mut [f64]> = design.current_law_columns_mut().collect();
     columns.extend(xyz.iter_mut().map(|c| c.as_mut_slice()));
     crate::effects::lag_in_place(t_s, &mut columns, tau_s);
     for (r, v) in fixed.iter_mut().enumerate() {

@@ -126,8 +126,10 @@ const REJECT_STATED_SD: f64 = 3.0;
 
 /// A candidate that re-fits a stand constant the scenario states (a dead zone, a spin-up
 /// time) stands only where the data reject the stated value: its fit must lie more than
-/// [`REJECT_STATED_SD`] standard uncertainties from it. Otherwise it is kept in the record,
-/// untestable, with why. (A constant the scenario leaves out is tested by its held-out gain
+/// [`REJECT_STATED_SD`] standard uncertainties from it, and the recording must be able to
+/// tell the two apart by more than the calibrated current law
+/// ([`Effect::inseparable_from_stated`]). Otherwise it is kept in the record, untestable,
+/// with why. (A constant the scenario leaves out is tested by its held-out gain
 /// and, when accepted, reported as calibration: see [`calibrates`].)
 fn refuse_within_stated(c: &mut Candidate, effect: &dyn Effect, ctx: &Context) {
     let Some((key, stated)) = effect.stand_constant(ctx) else {
@@ -141,29 +143,22 @@ fn refuse_within_stated(c: &mut Candidate, effect: &dyn Effect, ctx: &Context) {
     let Some((theta, sd, _)) = &c.fitted else {
         return;
     };
-    let rejects = sd
-        .first()
-        .copied()
-        .flatten()
-        .is_some_and(|sd| (theta[0] - stated).abs() > REJECT_STATED_SD * sd);
-    if rejects && !effect.separable_from_stated(ctx, stated, theta[0]) {
-        c.result.note = Some(format!(
-            "fitted {key} = {} differs from the stated {stated} only in a way the calibrated \
-             current law takes up as well (no logged command lies between the two): the data \
-             do not reject the statement",
-            crate::diagnosis::value_with_sd(theta[0], sd.first().copied().flatten())
-        ));
-        c.result.p_value = None;
+    let shown = sd.first().copied().flatten();
+    let rejects = shown.is_some_and(|sd| (theta[0] - stated).abs() > REJECT_STATED_SD * sd);
+    let fitted = crate::diagnosis::value_with_sd(theta[0], shown);
+    let why_not = if !rejects {
+        format!(
+            "fitted {key} = {fitted} is within {REJECT_STATED_SD} sd of the stated {stated} (or its uncertainty is unknown): the data do not reject the statement"
+        )
+    } else if let Some(why) = effect.inseparable_from_stated(ctx, stated, theta[0]) {
+        format!(
+            "fitted {key} = {fitted} differs from the stated {stated}, but {why}: the data do not reject the statement"
+        )
+    } else {
         return;
-    }
-    if !rejects {
-        let shown = sd.first().copied().flatten();
-        c.result.note = Some(format!(
-            "fitted {key} = {} is within {REJECT_STATED_SD} sd of the stated {stated} (or its uncertainty is unknown): the data do not reject the statement",
-            crate::diagnosis::value_with_sd(theta[0], shown)
-        ));
-        c.result.p_value = None;
-    }
+    };
+    c.result.note = Some(why_not);
+    c.result.p_value = None;
 }
 
 /// Where a new term changes the prediction, in noise units.
