@@ -31,34 +31,28 @@ pub fn magstand(args: &[&str]) -> Run {
 /// the test if it does not succeed: a quick recording for commands that need one.
 #[allow(dead_code)] // not every test file needs a recording
 pub fn simulate_quick_tables(out: &str) {
-    let r = magstand(&[
-        "simulate",
-        "--scenario",
-        "builtin:czyba2015-tables",
-        "--out",
-        out,
-        "--set",
-        "program.dwell_s=1.0",
-        "--set",
-        "stand.enabled=false",
-    ]);
-    assert!(r.ok, "{}", r.stderr);
+    simulate_quick("builtin:czyba2015-tables", "1.0", out, None, &[]);
 }
 
 /// Simulates a short bench-supply stair (2 s dwell, no rigid body) with `seed` (the
-/// scenario's own where None) and the extra
-/// `key=value` settings `sets` into `out`, failing the test if it does not succeed: a quick
-/// stand recording for the physics fit.
+/// scenario's own where None) and the extra `key=value` settings `sets` into `out`, failing
+/// the test if it does not succeed: a quick stand recording for the physics fit.
 #[allow(dead_code)] // not every test file needs a stand recording
 pub fn simulate_bench_stair(out: &str, seed: Option<&str>, sets: &[&str]) {
+    simulate_quick("builtin:bench-supply-stair", "2.0", out, seed, sets);
+}
+
+/// Simulates `scenario` with its program's dwell at `dwell_s` and no rigid body into `out`.
+fn simulate_quick(scenario: &str, dwell_s: &str, out: &str, seed: Option<&str>, sets: &[&str]) {
+    let dwell = format!("program.dwell_s={dwell_s}");
     let mut args = vec![
         "simulate",
         "--scenario",
-        "builtin:bench-supply-stair",
+        scenario,
         "--out",
         out,
         "--set",
-        "program.dwell_s=2.0",
+        &dwell,
         "--set",
         "stand.enabled=false",
     ];
