@@ -177,22 +177,29 @@ pub struct StandHandle(usize);
 /// One frame on its mount, as the world keeps it.
 struct StandBody {
     /// `None` for a disabled stand: perfectly rigid and still, no rapier body.
-    body: Option<RigidBodyHandle>,
+    body: Option<RigidBody>,
     rest: UnitQuaternion<f64>,
     layout: Vec<(Vec3, f64)>,
     mount: Mount,
     previous_velocity: Vec3,
+    /// Force and torque (world frame) set for the next step.
+    force: Vector,
+    torque: Vector,
 }
 
-/// Several restrained stands in one rapier3d world, stepped together.
+/// Several restrained stands, each a rapier3d rigid body, stepped together.
 ///
-/// rapier's per-step cost is almost all fixed pipeline work (island and solver bookkeeping),
-/// about 1.9 µs for one body and about 0.2 µs for each further one: the runs of a study share
-/// one world so that one pipeline step serves them all. The stands carry no colliders and no
-/// joints, so they never interact, and each body's state is the same, bit for bit, whatever else
-/// is in the world (`simulate_batch`'s tests hold it to that).
+/// Each body is advanced by rapier's own integrators ([`RigidBodyForces::integrate`] for the
+/// velocities, [`RigidBodyVelocity::integrate`] for the pose: symplectic Euler, the order
+/// rapier's solver uses) with its mass properties from rapier
+/// ([`RigidBody::recompute_mass_properties_from_colliders`], the world inertia turned with the
+/// pose by [`RigidBody::set_position`]). rapier's physics pipeline is not stepped: a body with
+/// no collider and no joint gives its broad phase, narrow phase, islands and constraint solver
+/// nothing to do, yet they cost about 1.3 µs per step, more than everything else of a 1 kHz
+/// step together (results/BENCHMARKS.md). A test holds the bodies to the pipeline's trajectory
+/// (`the_bodies_follow_rapiers_pipeline`). The stands never interact: each body's state is the
+/// same, bit for bit, whatever else is in the world (`simulate_batch`'s tests hold it to that).
 pub struct StandWorld {
-    world: Option<PhysicsWorld>,
     stands: Vec<StandBody>,
     dt_s: f64,
 }
@@ -201,7 +208,6 @@ impl StandWorld {
     /// An empty world stepping `dt_s` seconds at a time.
     pub fn new(dt_s: f64) -> Self {
         Self {
-            world: None,
             stands: Vec::new(),
             dt_s,
         }
@@ -210,41 +216,15 @@ impl StandWorld {
     /// Adds a stand at rest, its body at the static sag of its mount.
     pub fn add(&mut self, p: &StandParams, motors: &MotorParams) -> StandHandle {
         let rest = p.rest_attitude();
-        let body = p.enabled.then(|| {
-            let world = self.world.get_or_insert_with(|| {
-                let mut world = PhysicsWorld::new();
-                world.gravity = Vector::new(0.0, 0.0, GRAVITY_MPS2);
-                world.integration_parameters.dt = self.dt_s;
-                // No contacts and no constraints: one solver pass, and CCD has nothing to do.
-                world.integration_parameters.num_solver_iterations = 1;
-                world.integration_parameters.max_ccd_substeps = 0;
-                // Nothing to stabilize either (the recordings are byte-identical with it).
-                world
-                    .integration_parameters
-                    .num_internal_stabilization_iterations = 0;
-                world
-            });
-            let w = std::f64::consts::TAU * p.mount_frequency_hz;
-            let inertia = to_glam(Vec3::from(p.inertia_kg_m2));
-            world.insert_body(
-                RigidBodyBuilder::dynamic()
-                    // Start at the static sag m g / k so the run does not begin with a bounce.
-                    .translation(Vector::new(0.0, 0.0, GRAVITY_MPS2 / (w * w)))
-                    .rotation(to_glam(rest.scaled_axis()))
-                    .additional_mass_properties(MassProperties::new(
-                        Vector::ZERO,
-                        p.mass_kg,
-                        inertia,
-                    ))
-                    .can_sleep(false),
-            )
-        });
+        let body = p.enabled.then(|| stand_body(p, rest));
         self.stands.push(StandBody {
             body,
             rest,
             layout: motor_layout(motors),
             mount: Mount::new(p),
             previous_velocity: Vec3::zeros(),
+            force: Vector::ZERO,
+            torque: Vector::ZERO,
         });
         StandHandle(self.stands.len() - 1)
     }
@@ -252,43 +232,22 @@ impl StandWorld {
     /// Sets the motors' forces and torques on stand `h` for the next step (they replace the
     /// previous step's).
     pub fn apply(&mut self, h: StandHandle, motors: &MotorParams, states: &[MotorState]) {
-        let stand = &self.stands[h.0];
-        let (Some(world), Some(body)) = (self.world.as_mut(), stand.body) else {
+        let stand = &mut self.stands[h.0];
+        let Some(b) = stand.body.as_ref() else {
             return;
         };
-        let b = &mut world.bodies[body];
-        let q = quat_from_glam(b.rotation());
-        let origin = from_glam(b.translation());
-        b.reset_forces(false);
-        b.reset_torques(false);
-        let (mount_force, mount_torque) = stand.mount.reaction(
-            origin,
-            from_glam(b.linvel()),
-            &(stand.rest.inverse() * q),
-            q.inverse() * from_glam(b.angvel()),
-        );
-        // The rotors' forces and torques summed in the body frame and turned into the world
-        // once: a force f at arm r adds r x f about the centre of mass (the body's origin).
-        let (mut force_body, mut torque_body) = (Vec3::zeros(), mount_torque);
-        for (m, ((arm, spin), s)) in stand.layout.iter().zip(states).enumerate() {
-            let w = s.speed_rad_s;
-            // Thrust pushes up (body -z); the rotor's imbalance force turns with it.
-            let (sin, cos) = s.angle_rad.sin_cos();
-            let imbalance = motors.imbalance_kg_m * w * w * Vec3::new(cos, sin, 0.0);
-            let force = Vec3::new(0.0, 0.0, -motors.thrust(w)) + imbalance;
-            force_body += force;
-            // Drag on a rotor spinning +spin about body z reacts on the frame with -spin.
-            torque_body +=
-                arm.cross(&force) + Vec3::new(0.0, 0.0, -spin * motors.drag_torque(m, w));
-        }
-        b.add_force(to_glam(mount_force + q * force_body), false);
-        b.add_torque(to_glam(q * torque_body), false);
+        let (force, torque) = stand_forces(stand, b, motors, states);
+        stand.force = force;
+        stand.torque = torque;
     }
 
     /// Advances every stand by one step.
     pub fn step(&mut self) {
-        if let Some(world) = self.world.as_mut() {
-            world.step();
+        let dt_s = self.dt_s;
+        for stand in &mut self.stands {
+            if let Some(b) = stand.body.as_mut() {
+                integrate(b, stand.force, stand.torque, dt_s);
+            }
         }
     }
 
@@ -296,14 +255,13 @@ impl StandWorld {
     pub fn state(&mut self, h: StandHandle) -> BodyState {
         let dt_s = self.dt_s;
         let stand = &mut self.stands[h.0];
-        let (Some(world), Some(body)) = (self.world.as_ref(), stand.body) else {
+        let Some(b) = stand.body.as_ref() else {
             return BodyState {
                 attitude: stand.rest,
                 specific_force_mps2: stand.rest.inverse() * Vec3::new(0.0, 0.0, -GRAVITY_MPS2),
                 rate_rps: Vec3::zeros(),
             };
         };
-        let b = &world.bodies[body];
         let attitude = quat_from_glam(b.rotation());
         let velocity = from_glam(b.linvel());
         let accel = (velocity - stand.previous_velocity) / dt_s;
@@ -319,10 +277,117 @@ impl StandWorld {
     /// Takes stand `h`'s body out of the world (its run is over); its handle stays valid and
     /// reads the rest state from then on.
     pub fn remove(&mut self, h: StandHandle) {
-        if let (Some(world), Some(body)) = (self.world.as_mut(), self.stands[h.0].body.take()) {
-            world.remove_body(body);
-        }
+        self.stands[h.0].body = None;
     }
+}
+
+/// A stand's rapier body at rest, at the static sag m g / k of its mount so that the run does
+/// not begin with a bounce.
+fn stand_body(p: &StandParams, rest: UnitQuaternion<f64>) -> RigidBody {
+    let w = std::f64::consts::TAU * p.mount_frequency_hz;
+    let inertia = to_glam(Vec3::from(p.inertia_kg_m2));
+    let mut body = RigidBodyBuilder::dynamic()
+        .translation(Vector::new(0.0, 0.0, GRAVITY_MPS2 / (w * w)))
+        .rotation(to_glam(rest.scaled_axis()))
+        .additional_mass_properties(MassProperties::new(Vector::ZERO, p.mass_kg, inertia))
+        .can_sleep(false)
+        .build();
+    // No colliders: the mass properties are the additional ones alone.
+    body.recompute_mass_properties_from_colliders(&ColliderSet::new());
+    body
+}
+
+/// The mount's and the motors' force and torque on a stand's body, world frame.
+fn stand_forces(
+    stand: &StandBody,
+    b: &RigidBody,
+    motors: &MotorParams,
+    states: &[MotorState],
+) -> (Vector, Vector) {
+    let q = quat_from_glam(b.rotation());
+    let origin = from_glam(b.translation());
+    let (mount_force, mount_torque) = stand.mount.reaction(
+        origin,
+        from_glam(b.linvel()),
+        &(stand.rest.inverse() * q),
+        q.inverse() * from_glam(b.angvel()),
+    );
+    // The rotors' forces and torques summed in the body frame and turned into the world
+    // once: a force f at arm r adds r x f about the centre of mass (the body's origin).
+    let (mut force_body, mut torque_body) = (Vec3::zeros(), mount_torque);
+    for (m, ((arm, spin), s)) in stand.layout.iter().zip(states).enumerate() {
+        let w = s.speed_rad_s;
+        // Thrust pushes up (body -z); the rotor's imbalance force turns with it.
+        let (sin, cos) = s.angle_rad.sin_cos();
+        let imbalance = motors.imbalance_kg_m * w * w * Vec3::new(cos, sin, 0.0);
+        let force = Vec3::new(0.0, 0.0, -motors.thrust(w)) + imbalance;
+        force_body += force;
+        // Drag on a rotor spinning +spin about body z reacts on the frame with -spin.
+        torque_body += arm.cross(&force) + Vec3::new(0.0, 0.0, -spin * motors.drag_torque(m, w));
+    }
+    (
+        to_glam(mount_force + q * force_body),
+        to_glam(q * torque_body),
+    )
+}
+
+/// One step of a body under `force` and `torque` (world frame) and gravity, as rapier's solver
+/// steps a dynamic body that has no contact and no joint, in the same operations and order (so
+/// the same bits): the velocity increment of the forces, the gyroscopic correction at the
+/// step's starting attitude, then the pose by the linearized rotation of the new velocities.
+/// The bounds rapier puts on speed (a quarter turn per step) are far above a stand's motion and
+/// left out.
+fn integrate(b: &mut RigidBody, force: Vector, torque: Vector, dt_s: f64) {
+    let mprops = b.mass_properties();
+    let mut forces = RigidBodyForces {
+        user_force: force,
+        user_torque: torque,
+        ..Default::default()
+    };
+    forces.compute_effective_force_and_torque(
+        Vector::new(0.0, 0.0, GRAVITY_MPS2),
+        mprops.effective_mass(),
+    );
+    let local = &mprops.local_mprops;
+    let mut linvel = b.linvel() + forces.force * mprops.effective_inv_mass * dt_s;
+    let mut angvel = b.angvel() + mprops.effective_world_inv_inertia * forces.torque * dt_s;
+    let mut rotation = *b.rotation();
+    angvel = gyroscopic_corrected(
+        angvel,
+        rotation * local.principal_inertia_local_frame,
+        local.principal_inertia(),
+        local.inv_principal_inertia,
+        dt_s,
+    );
+    let half_turn = angvel * (dt_s * 0.5);
+    rotation =
+        (Rotation::from_xyzw(half_turn.x, half_turn.y, half_turn.z, 1.0) * rotation).normalize();
+    let translation = b.translation() + linvel * dt_s;
+    // rapier's (zero) damping, applied as it does.
+    linvel *= 1.0 / (1.0 + dt_s * b.linear_damping());
+    angvel *= 1.0 / (1.0 + dt_s * b.angular_damping());
+    b.set_vels(RigidBodyVelocity { linvel, angvel }, false);
+    b.set_position(Pose::from_parts(translation, rotation), false);
+}
+
+/// rapier's gyroscopic correction of a body's angular velocity: the explicit term of Euler's
+/// equations, its angular momentum's length kept.
+fn gyroscopic_corrected(
+    angvel: Vector,
+    principal_axes: Rotation,
+    principal_inertia: Vector,
+    inv_principal_inertia: Vector,
+    dt_s: f64,
+) -> Vector {
+    let w = principal_axes.inverse() * angvel;
+    let momentum = principal_inertia * w;
+    let total = momentum + -w.cross(momentum) * dt_s;
+    let total_sq = total.length_squared();
+    if total_sq == 0.0 {
+        return angvel;
+    }
+    let capped = total * (momentum.length_squared() / total_sq).sqrt();
+    principal_axes * (inv_principal_inertia * capped)
 }
 
 /// The frame on its mount: a world of one stand.
@@ -426,6 +491,100 @@ mod tests {
         assert!(
             (roll - expected).abs() < 0.05 * expected.abs(),
             "roll {roll} vs tau/k {expected}"
+        );
+    }
+
+    /// A body's pose and velocities, every coordinate.
+    fn coordinates(b: &RigidBody) -> [f64; 13] {
+        let (q, x, v, w) = (b.rotation(), b.translation(), b.linvel(), b.angvel());
+        [
+            q.x, q.y, q.z, q.w, x.x, x.y, x.z, v.x, v.y, v.z, w.x, w.y, w.z,
+        ]
+    }
+
+    /// The same stand stepped by rapier's full physics pipeline, its forces set as
+    /// `StandWorld` sets them: each step's coordinates of the body.
+    fn pipeline_trajectory(
+        p: &StandParams,
+        motors: &MotorParams,
+        states: &[MotorState],
+        steps: usize,
+        dt_s: f64,
+    ) -> Vec<[f64; 13]> {
+        let rest = p.rest_attitude();
+        let mut world = PhysicsWorld::new();
+        world.gravity = Vector::new(0.0, 0.0, GRAVITY_MPS2);
+        world.integration_parameters.dt = dt_s;
+        // One substep: the stands were stepped so before (the recordings did not change).
+        world.integration_parameters.num_solver_iterations = 1;
+        let handle = world.insert_body(stand_body(p, rest));
+        let stand = StandBody {
+            body: None,
+            rest,
+            layout: motor_layout(motors),
+            mount: Mount::new(p),
+            previous_velocity: Vec3::zeros(),
+            force: Vector::ZERO,
+            torque: Vector::ZERO,
+        };
+        (0..steps)
+            .map(|_| {
+                let b = &mut world.bodies[handle];
+                let (force, torque) = stand_forces(&stand, b, motors, states);
+                b.reset_forces(false);
+                b.reset_torques(false);
+                b.add_force(force, false);
+                b.add_torque(torque, false);
+                world.step();
+                coordinates(&world.bodies[handle])
+            })
+            .collect()
+    }
+
+    #[test]
+    fn the_bodies_move_as_rapiers_pipeline_moves_them_bit_for_bit() {
+        let p = StandParams {
+            heading_deg: 20.0,
+            mount_damping_ratio: 0.05,
+            ..Default::default()
+        };
+        let m = MotorParams::default();
+        // Unequal speeds and rotor angles: a tilt, a yaw torque and turning imbalance forces,
+        // a motion large enough for the gyroscopic term to matter.
+        let states: Vec<MotorState> = [900.0, 700.0, 820.0, 640.0]
+            .iter()
+            .enumerate()
+            .map(|(i, &w)| MotorState {
+                speed_rad_s: w,
+                angle_rad: 0.7 * i as f64,
+                current_a: 0.0,
+            })
+            .collect();
+        let dt_s = 1e-3;
+        let reference = pipeline_trajectory(&p, &m, &states, 3000, dt_s);
+        let mut world = StandWorld::new(dt_s);
+        let h = world.add(&p, &m);
+        let mut largest_tilt = 0.0f64;
+        for (k, expected) in reference.iter().enumerate() {
+            world.apply(h, &m, &states);
+            world.step();
+            let b = world.stands[h.0]
+                .body
+                .as_ref()
+                .expect("an enabled stand has a body");
+            let got = coordinates(b);
+            assert!(
+                got.iter()
+                    .zip(expected)
+                    .all(|(a, b)| a.to_bits() == b.to_bits()),
+                "step {k}: {got:?} against the pipeline's {expected:?}"
+            );
+            largest_tilt = largest_tilt
+                .max((p.rest_attitude().inverse() * quat_from_glam(b.rotation())).angle());
+        }
+        assert!(
+            largest_tilt > 0.01,
+            "the test must move the body: tilt {largest_tilt} rad"
         );
     }
 
