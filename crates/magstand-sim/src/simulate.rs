@@ -66,13 +66,10 @@ pub fn simulate_observed(s: &ValidScenario, seed: u64, observer: &mut dyn Observ
 }
 
 /// Steps the runs of one world to their ends, reporting the longest one's progress: each run
-/// sets its forces, one world step serves them all, and each reads its body back. A run's body
-/// leaves the world after its last step.
+/// sets its forces and one world step serves them all; a run reads its body only at the steps
+/// that record or snapshot it. A run's body leaves the world after its last step.
 fn run_together(batch: &mut [Run], world: &mut StandWorld, observer: &mut dyn Observer) {
     world.step();
-    for run in batch.iter_mut() {
-        run.read_body(world);
-    }
     let Some(longest) = batch.iter().max_by_key(|r| r.steps) else {
         return;
     };
@@ -83,12 +80,9 @@ fn run_together(batch: &mut [Run], world: &mut StandWorld, observer: &mut dyn Ob
             run.advance(k, world);
         }
         world.step();
-        for run in batch.iter_mut().filter(|r| k < r.steps) {
-            run.read_body(world);
-            if k + 1 == run.steps {
-                // Its run is over: the body would only cost pipeline time.
-                world.remove(run.handle);
-            }
+        for run in batch.iter().filter(|r| k + 1 == r.steps) {
+            // Its run is over: the body would only cost stepping time.
+            world.remove(run.handle);
         }
         if k % progress_every == 0 {
             observer.progress(k as f64 * dt, duration_s);
@@ -150,7 +144,6 @@ struct Run<'a> {
     supply: SupplyState,
     parts: Vec<Box<dyn StandModule>>,
     handle: StandHandle,
-    body: BodyState,
     /// The snapshots samples will still read, with their step.
     history: VecDeque<(usize, Snapshot)>,
     rec: Recording,
@@ -242,11 +235,6 @@ impl<'a> Run<'a> {
             module_fields: vec![Vec3::zeros(); parts.len()],
             parts,
             handle,
-            body: BodyState {
-                attitude: p.stand.rest_attitude(),
-                specific_force_mps2: Vec3::zeros(),
-                rate_rps: Vec3::zeros(),
-            },
             history: VecDeque::with_capacity(delay_steps + 1),
             rec,
             commands: vec![0.0; n_motors],
@@ -258,11 +246,6 @@ impl<'a> Run<'a> {
             program_cursor: 0,
             motor_constants: (0..n_motors).map(|m| p.motors.constants(m)).collect(),
         }
-    }
-
-    /// Reads the body's state after a world step.
-    fn read_body(&mut self, world: &mut StandWorld) {
-        self.body = world.state(self.handle);
     }
 
     /// Step `k`: records a sample when one is due, advances the electrical part under the
@@ -294,12 +277,16 @@ impl<'a> Run<'a> {
         // What the sensor sees now, from the state reached at time t: needed only at the
         // steps a sample will read (`mag_delay_s` earlier than the sample, or the first).
         let needed = k == 0 || self.sample_at.get(k + self.delay_steps) == Some(&true);
-        let attitude = if p.motion.is_on() {
-            p.motion.rotation(t) * self.body.attitude
-        } else {
-            self.body.attitude
-        };
-        if needed {
+        // The body's state after the last step, read only where a snapshot or a sample uses it.
+        let body: Option<BodyState> = (needed || is_sample).then(|| world.state(self.handle));
+        let attitude = body.map(|b| {
+            if p.motion.is_on() {
+                p.motion.rotation(t) * b.attitude
+            } else {
+                b.attitude
+            }
+        });
+        if let Some(attitude) = attitude.filter(|_| needed) {
             let motor_field = match p.disturbance.source {
                 // The avionics current flows with the motors off too: its field is part of
                 // m, and only what the motors add is the disturbance (eq. 9).
@@ -335,7 +322,7 @@ impl<'a> Run<'a> {
             self.history.push_back((k, snapshot));
         }
 
-        if is_sample {
+        if let (true, Some(body), Some(attitude)) = (is_sample, body, attitude) {
             // The state of `delay_steps` ago (or the first state, early in the run).
             let target = k.saturating_sub(self.delay_steps);
             while self.history.front().is_some_and(|(j, _)| *j < target) {
@@ -362,8 +349,8 @@ impl<'a> Run<'a> {
                 tc.push(temp_c);
             }
             if let Some(imu) = rec.imu.as_mut() {
-                imu.acc_mps2.push(self.body.specific_force_mps2);
-                imu.gyr_rps.push(self.body.rate_rps);
+                imu.acc_mps2.push(body.specific_force_mps2);
+                imu.gyr_rps.push(body.rate_rps);
             }
             if let Some(q) = rec.attitude.as_mut() {
                 // The attitude stream is logged with the commands, not with the delayed field.

@@ -181,6 +181,7 @@ struct StandBody {
     rest: UnitQuaternion<f64>,
     layout: Vec<(Vec3, f64)>,
     mount: Mount,
+    /// The body's velocity before the last step (the accelerometer's difference).
     previous_velocity: Vec3,
     /// Force and torque (world frame) set for the next step.
     force: Vector,
@@ -246,15 +247,16 @@ impl StandWorld {
         let dt_s = self.dt_s;
         for stand in &mut self.stands {
             if let Some(b) = stand.body.as_mut() {
+                stand.previous_velocity = from_glam(b.linvel());
                 integrate(b, stand.force, stand.torque, dt_s);
             }
         }
     }
 
     /// The state stand `h` reached in the last step.
-    pub fn state(&mut self, h: StandHandle) -> BodyState {
+    pub fn state(&self, h: StandHandle) -> BodyState {
         let dt_s = self.dt_s;
-        let stand = &mut self.stands[h.0];
+        let stand = &self.stands[h.0];
         let Some(b) = stand.body.as_ref() else {
             return BodyState {
                 attitude: stand.rest,
@@ -265,7 +267,6 @@ impl StandWorld {
         let attitude = quat_from_glam(b.rotation());
         let velocity = from_glam(b.linvel());
         let accel = (velocity - stand.previous_velocity) / dt_s;
-        stand.previous_velocity = velocity;
         let gravity = Vec3::new(0.0, 0.0, GRAVITY_MPS2);
         BodyState {
             attitude,

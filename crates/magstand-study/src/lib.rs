@@ -90,10 +90,6 @@ pub struct StudyResult {
     pub outcomes: Vec<MethodOutcome>,
 }
 
-/// Most runs simulated together in one rapier world. Past a few dozen stands the pipeline's
-/// fixed cost is spread thin, and a larger batch only delays the first progress report.
-pub const MAX_BATCH_RUNS: usize = 16;
-
 /// Runs a study on `threads` worker threads (all cores when `None`).
 pub fn run_study(
     study: &ValidStudy,
@@ -116,23 +112,19 @@ pub fn run_study(
         .map_err(|e| StudyError::Threads(e.to_string()))?;
     let runs: Vec<usize> = study.run_indices().collect();
     let done = AtomicUsize::new(0);
-    // Runs share a rapier world in batches (one pipeline step serves all their stands); a run's
-    // outcome does not depend on its batch, so the batch size may follow the thread count.
-    let batch = runs
-        .len()
-        .div_ceil(pool.current_num_threads())
-        .clamp(1, MAX_BATCH_RUNS);
-    let per_batch: Vec<Vec<Result<Vec<MethodOutcome>, StudyError>>> = pool.install(|| {
-        runs.par_chunks(batch)
-            .map(|chunk| {
-                run::run_batch(study, chunk, &|| {
-                    observer.run_finished(done.fetch_add(1, Ordering::Relaxed) + 1, runs.len());
-                })
+    // One run at a time per thread: its stands no longer share anything with other runs' (see
+    // `magstand_sim::StandWorld`), and a run's two recordings stay in cache while it is fitted.
+    let per_run: Vec<Result<Vec<MethodOutcome>, StudyError>> = pool.install(|| {
+        runs.par_iter()
+            .map(|&run| {
+                let outcome = run::run_one(study, run);
+                observer.run_finished(done.fetch_add(1, Ordering::Relaxed) + 1, runs.len());
+                outcome
             })
             .collect()
     });
     let mut outcomes = Vec::with_capacity(runs.len() * study.methods().len());
-    for r in per_batch.into_iter().flatten() {
+    for r in per_run {
         outcomes.extend(r?);
     }
     Ok(StudyResult {

@@ -85,54 +85,19 @@ pub fn identification_series(
     Ok((seed, ident_s, ident))
 }
 
-/// Runs run `run` of the study.
+/// Runs run `run` of the study: its identification and validation series simulated together
+/// ([`magstand_sim::simulate_batch`]), every method fitted on the first and judged on the second.
 pub fn run_one(study: &ValidStudy, run: usize) -> Result<Vec<MethodOutcome>, StudyError> {
-    run_batch(study, &[run], &|| {})
-        .pop()
-        .expect("one run in, one out")
-}
-
-/// Runs several runs of the study, their stands simulated together in one rapier world
-/// ([`magstand_sim::simulate_batch`]); each run's outcome is the same as [`run_one`]'s.
-/// `run_judged` is called as each run's methods are judged.
-pub fn run_batch(
-    study: &ValidStudy,
-    runs: &[usize],
-    run_judged: &dyn Fn(),
-) -> Vec<Result<Vec<MethodOutcome>, StudyError>> {
-    let mut prepared = Vec::with_capacity(runs.len());
-    let mut series = Vec::with_capacity(2 * runs.len());
-    for &run in runs {
-        let seed = derive_seed(study.config.seed, run as u64);
-        match run_scenarios(study, seed) {
-            Ok(pair) => {
-                prepared.push(Ok(seed));
-                series.push((pair, seed));
-            }
-            Err(e) => prepared.push(Err(e)),
-        }
-    }
-    let stands: Vec<(&ValidScenario, u64)> = series
-        .iter()
-        .flat_map(|((ident_s, valid_s), seed)| {
-            [(ident_s, *seed), (valid_s, derive_seed(*seed, 0x7A11D))]
-        })
-        .collect();
-    let mut recordings = magstand_sim::simulate_batch(&stands).into_iter();
-    runs.iter()
-        .zip(prepared)
-        .map(|(&run, seed)| {
-            let judged = seed.map(|seed| {
-                let (ident, valid) = (
-                    recordings.next().expect("an identification series per run"),
-                    recordings.next().expect("a validation series per run"),
-                );
-                judge(study, run, seed, &ident, &valid)
-            });
-            run_judged();
-            judged
-        })
-        .collect()
+    let seed = derive_seed(study.config.seed, run as u64);
+    let (ident_s, valid_s) = run_scenarios(study, seed)?;
+    let mut series =
+        magstand_sim::simulate_batch(&[(&ident_s, seed), (&valid_s, derive_seed(seed, 0x7A11D))])
+            .into_iter();
+    let (ident, valid) = (
+        series.next().expect("an identification series per run"),
+        series.next().expect("a validation series per run"),
+    );
+    Ok(judge(study, run, seed, &ident, &valid))
 }
 
 /// Fits every method on run `run`'s identification series and judges it on the validation
