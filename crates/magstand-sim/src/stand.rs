@@ -319,7 +319,7 @@ fn stand_forces(
     for (m, ((arm, spin), s)) in stand.layout.iter().zip(states).enumerate() {
         let w = s.speed_rad_s;
         // Thrust pushes up (body -z); the rotor's imbalance force turns with it.
-        let (sin, cos) = s.angle_rad.sin_cos();
+        let (sin, cos) = crate::motor::rotor_sin_cos(s.angle_rad);
         let imbalance = motors.imbalance_kg_m * w * w * Vec3::new(cos, sin, 0.0);
         let force = Vec3::new(0.0, 0.0, -motors.thrust(w)) + imbalance;
         force_body += force;
