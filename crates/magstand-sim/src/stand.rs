@@ -186,6 +186,8 @@ struct StandBody {
     /// Force and torque (world frame) set for the next step.
     force: Vector,
     torque: Vector,
+    /// The body's effective mass per axis, rapier's (constant: taken once).
+    mass: Vector,
 }
 
 /// Several restrained stands, each a rapier3d rigid body, stepped together.
@@ -218,8 +220,12 @@ impl StandWorld {
     pub fn add(&mut self, p: &StandParams, motors: &MotorParams) -> StandHandle {
         let rest = p.rest_attitude();
         let body = p.enabled.then(|| stand_body(p, rest));
+        let mass = body
+            .as_ref()
+            .map_or(Vector::ZERO, |b| b.mass_properties().effective_mass());
         self.stands.push(StandBody {
             body,
+            mass,
             rest,
             layout: motor_layout(motors),
             mount: Mount::new(p),
@@ -248,7 +254,7 @@ impl StandWorld {
         for stand in &mut self.stands {
             if let Some(b) = stand.body.as_mut() {
                 stand.previous_velocity = from_glam(b.linvel());
-                integrate(b, stand.force, stand.torque, dt_s);
+                integrate(b, stand.force, stand.torque, stand.mass, dt_s);
             }
         }
     }
@@ -332,23 +338,20 @@ fn stand_forces(
     )
 }
 
-/// One step of a body under `force` and `torque` (world frame) and gravity, as rapier's solver
-/// steps a dynamic body that has no contact and no joint, in the same operations and order (so
-/// the same bits): the velocity increment of the forces, the gyroscopic correction at the
+/// One step of a body of effective mass `mass` under `force` and `torque` (world frame) and
+/// gravity, as rapier's solver steps a dynamic body that has no contact and no joint, in the
+/// same operations and order (so the same bits): the velocity increment of the forces, the gyroscopic correction at the
 /// step's starting attitude, then the pose by the linearized rotation of the new velocities.
 /// The bounds rapier puts on speed (a quarter turn per step) are far above a stand's motion and
 /// left out.
-fn integrate(b: &mut RigidBody, force: Vector, torque: Vector, dt_s: f64) {
+fn integrate(b: &mut RigidBody, force: Vector, torque: Vector, mass: Vector, dt_s: f64) {
     let mprops = b.mass_properties();
     let mut forces = RigidBodyForces {
         user_force: force,
         user_torque: torque,
         ..Default::default()
     };
-    forces.compute_effective_force_and_torque(
-        Vector::new(0.0, 0.0, GRAVITY_MPS2),
-        mprops.effective_mass(),
-    );
+    forces.compute_effective_force_and_torque(Vector::new(0.0, 0.0, GRAVITY_MPS2), mass);
     let local = &mprops.local_mprops;
     let mut linvel = b.linvel() + forces.force * mprops.effective_inv_mass * dt_s;
     let mut angvel = b.angvel() + mprops.effective_world_inv_inertia * forces.torque * dt_s;
@@ -527,6 +530,7 @@ mod tests {
             previous_velocity: Vec3::zeros(),
             force: Vector::ZERO,
             torque: Vector::ZERO,
+            mass: Vector::ZERO,
         };
         (0..steps)
             .map(|_| {
