@@ -60,10 +60,17 @@ impl Default for MotorParams {
     }
 }
 
+/// Most motors a stand may have.
+pub const MAX_MOTORS: usize = 16;
+
 impl MotorParams {
     pub(crate) fn check(&self, c: &Checker) -> Result<(), SimError> {
-        if !(1..=16).contains(&self.count) {
-            return Err(c.fail("motors.count", self.count, "an integer in 1..=16"));
+        if !(1..=MAX_MOTORS).contains(&self.count) {
+            return Err(c.fail(
+                "motors.count",
+                self.count,
+                &format!("an integer in 1..={MAX_MOTORS}"),
+            ));
         }
         c.positive("motors.arm_length_m", self.arm_length_m)?;
         c.range("motors.dead_zone", self.dead_zone, 0.0, 0.95)?;
@@ -215,7 +222,8 @@ pub(crate) fn rotor_sin_cos(angle: f64) -> (f64, f64) {
     // The nearest integer by the 1.5 * 2^52 shift (round half to even; `round` is a library
     // call without SSE4.1).
     const SHIFT: f64 = 6_755_399_441_055_744.0;
-    let n = (angle * std::f64::consts::FRAC_2_PI + SHIFT) - SHIFT;
+    let shifted = angle * std::f64::consts::FRAC_2_PI + SHIFT;
+    let n = shifted - SHIFT;
     let r = (angle - n * PIO2_HI) - n * PIO2_LO;
     let z = r * r;
     let sin_r = r + r * z * (S1 + z * (S2 + z * (S3 + z * (S4 + z * (S5 + z * S6)))));
@@ -224,15 +232,16 @@ pub(crate) fn rotor_sin_cos(angle: f64) -> (f64, f64) {
     let cos_r = w
         + (((1.0 - w) - half_z)
             + z * z * (C1 + z * (C2 + z * (C3 + z * (C4 + z * (C5 + z * C6))))));
-    let quadrant = n as i64;
-    let (sin, cos) = if quadrant & 1 == 0 {
-        (sin_r, cos_r)
-    } else {
-        (cos_r, -sin_r)
-    };
-    // Quadrants 2 and 3 are quadrants 0 and 1 turned by pi.
-    let sign = 1.0 - (quadrant & 2) as f64;
-    (sign * sin, sign * cos)
+    // The quadrant is n's low bits, the mantissa's of the shifted sum (two's complement for a
+    // negative n): odd quadrants swap sine and cosine, quadrants 2 and 3
+    // flip both signs (a turn by pi); done on the bits, without a branch.
+    let quadrant = shifted.to_bits();
+    let odd = 0u64.wrapping_sub(quadrant & 1);
+    let flip = (quadrant & 2) << 62;
+    let neg_sin_r = (-sin_r).to_bits();
+    let sin = (sin_r.to_bits() & !odd) | (cos_r.to_bits() & odd);
+    let cos = (cos_r.to_bits() & !odd) | (neg_sin_r & odd);
+    (f64::from_bits(sin ^ flip), f64::from_bits(cos ^ flip))
 }
 
 /// State of one motor: rotor speed and rotor angle (for the imbalance force).

@@ -16,7 +16,7 @@ use rapier3d_f64::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use crate::error::{Checker, SimError};
-use crate::motor::{MotorParams, MotorState};
+use crate::motor::{MAX_MOTORS, MotorParams, MotorState};
 use magstand_core::Vec3;
 
 /// Standard gravity, m/s^2.
@@ -322,10 +322,17 @@ fn stand_forces(
     // The rotors' forces and torques summed in the body frame and turned into the world
     // once: a force f at arm r adds r x f about the centre of mass (the body's origin).
     let (mut force_body, mut torque_body) = (Vec3::zeros(), mount_torque);
-    for (m, ((arm, spin), s)) in stand.layout.iter().zip(states).enumerate() {
+    // Every rotor's sine and cosine in one loop of its own, which the compiler vectorizes.
+    debug_assert!(states.len() <= MAX_MOTORS, "{} motors", states.len());
+    let mut turn = [(0.0, 0.0); MAX_MOTORS];
+    for (t, s) in turn.iter_mut().zip(states) {
+        *t = crate::motor::rotor_sin_cos(s.angle_rad);
+    }
+    for (m, (((arm, spin), s), &(sin, cos))) in
+        stand.layout.iter().zip(states).zip(&turn).enumerate()
+    {
         let w = s.speed_rad_s;
         // Thrust pushes up (body -z); the rotor's imbalance force turns with it.
-        let (sin, cos) = crate::motor::rotor_sin_cos(s.angle_rad);
         let imbalance = motors.imbalance_kg_m * w * w * Vec3::new(cos, sin, 0.0);
         let force = Vec3::new(0.0, 0.0, -motors.thrust(w)) + imbalance;
         force_body += force;
