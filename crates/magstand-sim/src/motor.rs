@@ -205,20 +205,21 @@ fn wrap_angle(angle: f64) -> f64 {
 /// Four rotors take this every physics step; the C library's `sincos` was a tenth of a study's
 /// time.
 pub(crate) fn rotor_sin_cos(angle: f64) -> (f64, f64) {
-    const PIO2_HI: f64 = 1.570_796_326_734_125_614_17;
-    const PIO2_LO: f64 = 6.077_100_506_506_192_249_32e-11;
-    const S1: f64 = -1.666_666_666_666_663_243_48e-1;
-    const S2: f64 = 8.333_333_333_322_489_461_24e-3;
-    const S3: f64 = -1.984_126_982_985_794_931_34e-4;
-    const S4: f64 = 2.755_731_370_707_006_767_89e-6;
-    const S5: f64 = -2.505_076_025_340_686_341_95e-8;
-    const S6: f64 = 1.589_690_995_211_550_102_21e-10;
-    const C1: f64 = 4.166_666_666_666_660_190_37e-2;
-    const C2: f64 = -1.388_888_888_887_410_957_49e-3;
-    const C3: f64 = 2.480_158_728_947_672_941_78e-5;
-    const C4: f64 = -2.755_731_435_139_066_330_35e-7;
-    const C5: f64 = 2.087_572_321_298_174_827_90e-9;
-    const C6: f64 = -1.135_964_755_778_819_482_65e-11;
+    // fdlibm's constants, by their bits as its source gives them.
+    const PIO2_HI: f64 = f64::from_bits(0x3FF9_21FB_5440_0000);
+    const PIO2_LO: f64 = f64::from_bits(0x3DD0_B461_1A62_6331);
+    const S1: f64 = f64::from_bits(0xBFC5_5555_5555_5549);
+    const S2: f64 = f64::from_bits(0x3F81_1111_1110_F8A6);
+    const S3: f64 = f64::from_bits(0xBF2A_01A0_19C1_61D5);
+    const S4: f64 = f64::from_bits(0x3EC7_1DE3_57B1_FE7D);
+    const S5: f64 = f64::from_bits(0xBE5A_E5E6_8A2B_9CEB);
+    const S6: f64 = f64::from_bits(0x3DE5_D93A_5ACF_D57C);
+    const C1: f64 = f64::from_bits(0x3FA5_5555_5555_554C);
+    const C2: f64 = f64::from_bits(0xBF56_C16C_16C1_5177);
+    const C3: f64 = f64::from_bits(0x3EFA_01A0_19CB_1590);
+    const C4: f64 = f64::from_bits(0xBE92_7E4F_809C_52AD);
+    const C5: f64 = f64::from_bits(0x3E21_EE9E_BDB4_B1C4);
+    const C6: f64 = f64::from_bits(0xBDA8_FAE9_BE88_38D4);
     // The nearest integer by the 1.5 * 2^52 shift (round half to even; `round` is a library
     // call without SSE4.1).
     const SHIFT: f64 = 6_755_399_441_055_744.0;

@@ -91,12 +91,12 @@ fn run_together(batch: &mut [Run], world: &mut StandWorld, observer: &mut dyn Ob
     observer.progress(duration_s, duration_s);
 }
 
-/// Simulates several scenarios, each with its own seed, their stands sharing one rapier world.
+/// Simulates several scenarios, each with its own seed, their stands stepped together in one
+/// [`StandWorld`] (a study's identification and validation series of a run).
 ///
 /// Each recording is the same, byte for byte, as [`simulate`] gives for that scenario and seed
-/// alone: the stands never interact, and every random stream belongs to one run. Only the cost
-/// changes: one rapier pipeline step serves all the stands of a batch (see [`StandWorld`]).
-/// Scenarios with different physics rates go to separate worlds.
+/// alone: the stands never interact, and every random stream belongs to one run. Scenarios with
+/// different physics rates go to separate worlds.
 pub fn simulate_batch(runs: &[(&ValidScenario, u64)]) -> Vec<Recording> {
     let mut out: Vec<Option<Recording>> = vec![None; runs.len()];
     let mut rates: Vec<u64> = runs

@@ -200,7 +200,7 @@ struct StandBody {
 /// no collider and no joint gives its broad phase, narrow phase, islands and constraint solver
 /// nothing to do, yet they cost about 1.3 µs per step, more than everything else of a 1 kHz
 /// step together (results/BENCHMARKS.md). A test holds the bodies to the pipeline's trajectory
-/// (`the_bodies_follow_rapiers_pipeline`). The stands never interact: each body's state is the
+/// (`the_bodies_move_as_rapiers_pipeline_moves_them_bit_for_bit`). The stands never interact: each body's state is the
 /// same, bit for bit, whatever else is in the world (`simulate_batch`'s tests hold it to that).
 pub struct StandWorld {
     stands: Vec<StandBody>,

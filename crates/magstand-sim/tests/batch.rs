@@ -1,4 +1,4 @@
-//! A batch of stands in one rapier world gives each run the same recording, byte for byte, as
+//! A batch of stands in one world gives each run the same recording, byte for byte, as
 //! that run simulated alone: the stands never interact, and each run keeps its own random
 //! streams. Mixed here: different scenarios, seeds, durations, physics rates, a disabled stand,
 //! stand modules (thermal, hysteresis), a gimbal and a magnetometer delay.
