@@ -382,7 +382,7 @@ impl AugmentedModel {
         let built = build_with_lead(&ctx, &terms, self.command_lead);
         if built.design.names != self.columns {
             return Err(bad(format!(
-                "the model's regressors are [{}], this recording gives [{}]: it lacks a column the diagnosed recording had (bat_v or temp_c?)",
+                "the model's regressors are [{}], this recording gives [{}]: it lacks a column the diagnosed recording had (bat_v or temp_c?), or the model was written by a magstand whose terms had other columns (diagnose the recording again)",
                 self.columns.join(", "),
                 built.design.names.join(", ")
             )));

@@ -145,28 +145,46 @@ impl Effect for BatterySag {
     fn regressors(&self, ctx: &Context, trace: &Trace, _theta: &[f64]) -> Vec<(String, Vec<f64>)> {
         // With the voltage logged, the replay follows it through the nominal motor, whose
         // current grows about as the voltage squared at a fixed command (speed with the
-        // voltage, propeller load with the speed squared). Another stand's current law may
-        // follow its voltage more or less steeply: that steepness is not stated, so the
-        // motor current times the voltage's relative change enters with a free gain.
+        // voltage, propeller load with the speed squared). Another stand's current may follow
+        // its voltage more or less steeply, and its field may be a nonlinear function of the
+        // current: neither is stated. To first order in the voltage's relative change, the
+        // field at a command then moves by the change times a combination of the current law's
+        // own columns (a law in powers of speed holds the current times its derivative), so
+        // each of them times the change enters with a free gain.
         let Some(v) = ctx.rec.bat_v.as_deref() else {
             return Vec::new();
         };
         // Relative to the nominal supply's no-load voltage, a constant of the model (not of
-        // the recording), so that a model file predicts a new recording with the same column.
+        // the recording), so that a model file predicts a new recording with the same columns.
         let reference_v = ctx.nominal.supply.no_load_voltage_v();
         if !(reference_v > 0.0) {
             return Vec::new();
         }
-        let avionics = ctx.nominal.supply.avionics_current_a();
-        vec![(
-            "current_x_voltage_change".into(),
-            trace
-                .total_a
-                .iter()
-                .zip(v)
-                .map(|(a, v)| (a - avionics) * (v - reference_v) / reference_v)
-                .collect(),
-        )]
+        let change = v.iter().map(|v| (v - reference_v) / reference_v);
+        if ctx.follow_recorded_current {
+            // A flight logs its current: the voltage's effect on it is in the log, and what is
+            // left is how steeply the field follows it at the voltage, one column.
+            let avionics = ctx.nominal.supply.avionics_current_a();
+            return vec![(
+                "current_x_voltage_change".into(),
+                trace
+                    .total_a
+                    .iter()
+                    .zip(change)
+                    .map(|(a, d)| (a - avionics) * d)
+                    .collect(),
+            )];
+        }
+        let change: Vec<f64> = change.collect();
+        let mut law = crate::fit::Design::baseline(trace, false, ctx.speed_powers);
+        law.current_law_columns_mut()
+            .for_each(|c| c.iter_mut().zip(&change).for_each(|(x, d)| *x *= d));
+        law.names
+            .into_iter()
+            .zip(law.columns)
+            .filter(|(name, _)| name != "reference")
+            .map(|(name, c)| (format!("voltage_change_x_{name}"), c))
+            .collect()
     }
     fn switch_on(&self, ctx: &Context, s: &mut Scenario, f: &EffectFit) -> Vec<Param> {
         let fitted = if ctx.rec.bat_v.is_none() {
