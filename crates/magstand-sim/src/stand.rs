@@ -190,6 +190,25 @@ struct StandBody {
     mass: Vector,
 }
 
+impl StandBody {
+    /// A stand on its mount with `body` (none: disabled, or stepped elsewhere), no force set.
+    fn new(p: &StandParams, motors: &MotorParams, body: Option<RigidBody>) -> Self {
+        let mass = body
+            .as_ref()
+            .map_or(Vector::ZERO, |b| b.mass_properties().effective_mass());
+        Self {
+            body,
+            mass,
+            rest: p.rest_attitude(),
+            layout: motor_layout(motors),
+            mount: Mount::new(p),
+            previous_velocity: Vec3::zeros(),
+            force: Vector::ZERO,
+            torque: Vector::ZERO,
+        }
+    }
+}
+
 /// Several restrained stands, each a rapier3d rigid body, stepped together.
 ///
 /// Each body is advanced by rapier's own integrators ([`RigidBodyForces::integrate`] for the
@@ -218,21 +237,8 @@ impl StandWorld {
 
     /// Adds a stand at rest, its body at the static sag of its mount.
     pub fn add(&mut self, p: &StandParams, motors: &MotorParams) -> StandHandle {
-        let rest = p.rest_attitude();
-        let body = p.enabled.then(|| stand_body(p, rest));
-        let mass = body
-            .as_ref()
-            .map_or(Vector::ZERO, |b| b.mass_properties().effective_mass());
-        self.stands.push(StandBody {
-            body,
-            mass,
-            rest,
-            layout: motor_layout(motors),
-            mount: Mount::new(p),
-            previous_velocity: Vec3::zeros(),
-            force: Vector::ZERO,
-            torque: Vector::ZERO,
-        });
+        let body = p.enabled.then(|| stand_body(p, p.rest_attitude()));
+        self.stands.push(StandBody::new(p, motors, body));
         StandHandle(self.stands.len() - 1)
     }
 
@@ -529,16 +535,7 @@ mod tests {
         // One substep: the stands were stepped so before (the recordings did not change).
         world.integration_parameters.num_solver_iterations = 1;
         let handle = world.insert_body(stand_body(p, rest));
-        let stand = StandBody {
-            body: None,
-            rest,
-            layout: motor_layout(motors),
-            mount: Mount::new(p),
-            previous_velocity: Vec3::zeros(),
-            force: Vector::ZERO,
-            torque: Vector::ZERO,
-            mass: Vector::ZERO,
-        };
+        let stand = StandBody::new(p, motors, None);
         (0..steps)
             .map(|_| {
                 let b = &mut world.bodies[handle];
