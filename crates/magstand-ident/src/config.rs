@@ -449,6 +449,12 @@ impl ValidFitConfig {
                     _ => fit_with(on, &w, &w_at)?,
                 };
                 weights_sd = Some(noise.clone());
+                if pass == 1 && !want_sd && !sampled {
+                    // Nothing reads the last noise model: no pass follows to weight, and the
+                    // fit does not keep one.
+                    (sd, r) = (None, None);
+                    break;
+                }
                 (sd, r) = noise_of(&s);
             }
         }
@@ -629,6 +635,24 @@ impl ValidFitConfig {
         let select = self.structure_score_rows(data);
         let fitted = self.fit_rows(data, &|_| true, &select, true)?;
         Ok(self.model_of(data, fitted))
+    }
+
+    /// The model fitted on every row for its predictions alone: no noise model (a weighted
+    /// fit still settles its weights) and no residuals, the passes a Monte Carlo study, which
+    /// judges the predictions against the simulator's truth, would throw away. The structure
+    /// and coefficients are [`fit_every_row`](Self::fit_every_row)'s.
+    pub fn fit_to_predict(&self, data: &Dataset) -> Result<Model, IdentError> {
+        let select = self.structure_score_rows(data);
+        let fitted = self.fit_rows(data, &|_| true, &select, false)?;
+        let mut model = Model::new(
+            &self.method_name(),
+            data.spec.clone(),
+            data.reference_ut,
+            fitted.structure,
+            None,
+        );
+        model.identified = IdentifiedRange::of(&data.u, data.spec.normalize(data.spec.off_raw));
+        Ok(model)
     }
 
     /// The model of a fit on every row, and its residuals.

@@ -152,11 +152,8 @@ fn judge(
                     .and_then(|c| {
                         // Judged against the truth below: no training fit for a held-out
                         // error the study does not report.
-                        dataset_of(config.input).and_then(|d| {
-                            c.fit_every_row(d)
-                                .map(|(model, _)| model)
-                                .map_err(|e| e.to_string())
-                        })
+                        dataset_of(config.input)
+                            .and_then(|d| c.fit_to_predict(d).map_err(|e| e.to_string()))
                     })
                     .and_then(|model| {
                         let predicted = model.dist_column(valid);
