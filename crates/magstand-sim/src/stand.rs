@@ -211,16 +211,18 @@ impl StandBody {
 
 /// Several restrained stands, each a rapier3d rigid body, stepped together.
 ///
-/// Each body is advanced by rapier's own integrators ([`RigidBodyForces::integrate`] for the
-/// velocities, [`RigidBodyVelocity::integrate`] for the pose: symplectic Euler, the order
-/// rapier's solver uses) with its mass properties from rapier
-/// ([`RigidBody::recompute_mass_properties_from_colliders`], the world inertia turned with the
-/// pose by [`RigidBody::set_position`]). rapier's physics pipeline is not stepped: a body with
-/// no collider and no joint gives its broad phase, narrow phase, islands and constraint solver
-/// nothing to do, yet they cost about 1.3 µs per step, more than everything else of a 1 kHz
-/// step together (results/BENCHMARKS.md). A test holds the bodies to the pipeline's trajectory
-/// (`the_bodies_move_as_rapiers_pipeline_moves_them_bit_for_bit`). The stands never interact: each body's state is the
-/// same, bit for bit, whatever else is in the world (`simulate_batch`'s tests hold it to that).
+/// Each body keeps rapier's state and mass properties
+/// ([`RigidBody::recompute_mass_properties_from_colliders`]; the world inertia turned with the
+/// pose by [`RigidBody::set_position`]) and is advanced by the operations rapier's solver
+/// applies to a dynamic body that has no contact and no joint, in its order: the force
+/// increment, the gyroscopic correction, the linearized rotation, rapier's damping. rapier's
+/// physics pipeline itself is not stepped: its broad phase, narrow phase, islands and
+/// constraint stages have nothing to do for such a body, yet cost about 1.3 µs per step, more
+/// than everything else of a 1 kHz step together (results/BENCHMARKS.md). A test holds every
+/// coordinate of a moving body to the pipeline's, bit for bit
+/// (`the_bodies_move_as_rapiers_pipeline_moves_them_bit_for_bit`). The stands never interact:
+/// each body's state is the same, bit for bit, whatever else is in the world
+/// (`simulate_batch`'s tests hold it to that).
 pub struct StandWorld {
     stands: Vec<StandBody>,
     dt_s: f64,
