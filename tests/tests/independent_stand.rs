@@ -24,6 +24,14 @@ fn suite_case(label: &str) -> Case {
         .unwrap_or_else(|| panic!("no suite case {label:?}"))
 }
 
+/// The effect of that name in a diagnosis, if it was named.
+fn named<'d>(
+    d: &'d magstand_diagnose::Diagnosis,
+    name: &str,
+) -> Option<&'d magstand_diagnose::diagnosis::EffectReport> {
+    d.effects.iter().find(|e| e.name == name)
+}
+
 #[test]
 fn the_generator_depends_on_no_magstand_crate() {
     let manifest =
@@ -114,11 +122,7 @@ fn unstated_constants_are_calibrated_and_a_slow_lag_is_still_named() {
         "the dead zone is not calibrated: {calibrated:?}"
     );
     let o = run_case(&suite_case("current lag 0.5 s"), Mode::Unstated, 2);
-    let tau = o
-        .diagnosis
-        .effects
-        .iter()
-        .find(|e| e.name == "current_lag")
+    let tau = named(&o.diagnosis, "current_lag")
         .and_then(|e| e.params.first())
         .map(|p| p.value);
     assert!(
@@ -214,11 +218,7 @@ fn a_stand_without_spin_up_is_followed_at_every_step() {
 fn a_sagging_battery_is_named_whatever_its_current_law_makes_of_the_voltage() {
     use magstand_tests::independent::{Mode, run_case};
     let o = run_case(&suite_case("battery sag"), Mode::Unstated, 1);
-    let sag = o
-        .diagnosis
-        .effects
-        .iter()
-        .find(|e| e.name == "battery_sag")
+    let sag = named(&o.diagnosis, "battery_sag")
         .unwrap_or_else(|| panic!("{:?}\n{}", o.verdict, o.diagnosis.summary()));
     let param = |name: &str| sag.params.iter().find(|p| p.name == name).map(|p| p.value);
     assert_eq!(param("cells"), Some(4.0), "{:?}", sag.params);
@@ -272,11 +272,7 @@ fn a_late_magnetometer_is_reported_with_its_timing_ambiguity_and_nothing_else() 
     use magstand_tests::independent::{Mode, run_case};
     let o = run_case(&suite_case("time offset 0.3 s"), Mode::Stated, 1);
     assert_eq!(o.verdict, ["time_offset"], "{}", o.diagnosis.summary());
-    let p = o
-        .diagnosis
-        .effects
-        .iter()
-        .find(|e| e.name == "time_offset")
+    let p = named(&o.diagnosis, "time_offset")
         .and_then(|e| e.params.first())
         .expect("the delay");
     let sd = p.sd.expect("an uncertainty");

@@ -39,21 +39,14 @@ fn the_printed_held_out_error_is_the_calibrated_models() {
     assert_eq!(printed.len(), 3, "{line}");
     // The simulator's own noise, RMS over the rows: a calibrated model of its own stand
     // leaves about that.
-    let text = std::fs::read_to_string(&recording).unwrap();
-    let mut lines = text.lines();
-    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
-    let col = |name: &str| header.iter().position(|h| *h == name).unwrap();
-    let sd_cols = ["true_sd_x_ut", "true_sd_y_ut", "true_sd_z_ut"].map(col);
-    let (mut sum, mut n) = ([0.0; 3], 0.0);
-    for l in lines {
-        let v: Vec<f64> = l.split(',').map(|x| x.parse().unwrap()).collect();
-        for a in 0..3 {
-            sum[a] += v[sd_cols[a]].powi(2);
-        }
-        n += 1.0;
-    }
+    let rec = magstand_core::recording_csv::read(&recording).unwrap();
+    let sd = &rec
+        .truth
+        .as_ref()
+        .expect("a simulated recording's truth")
+        .sd_ut;
     for a in 0..3 {
-        let noise = (sum[a] / n).sqrt();
+        let noise = (sd.iter().map(|v| v[a] * v[a]).sum::<f64>() / sd.len() as f64).sqrt();
         assert!(
             printed[a] < 1.2 * noise,
             "axis {a}: printed held-out RMSE {} µT against noise {noise:.3} µT ({line})",

@@ -644,15 +644,20 @@ impl ValidFitConfig {
     pub fn fit_to_predict(&self, data: &Dataset) -> Result<Model, IdentError> {
         let select = self.structure_score_rows(data);
         let fitted = self.fit_rows(data, &|_| true, &select, false)?;
-        let mut model = Model::new(
+        let mut model = self.named_model(data, fitted.structure, None);
+        model.identified = IdentifiedRange::of(&data.u, data.spec.normalize(data.spec.off_raw));
+        Ok(model)
+    }
+
+    /// The model of `structure` fitted on `data`, named for this configuration.
+    fn named_model(&self, data: &Dataset, structure: Structure, sd: Option<SdModel>) -> Model {
+        Model::new(
             &self.method_name(),
             data.spec.clone(),
             data.reference_ut,
-            fitted.structure,
-            None,
-        );
-        model.identified = IdentifiedRange::of(&data.u, data.spec.normalize(data.spec.off_raw));
-        Ok(model)
+            structure,
+            sd,
+        )
     }
 
     /// The model of a fit on every row, and its residuals.
@@ -663,13 +668,7 @@ impl ValidFitConfig {
             residuals,
             ..
         } = fitted;
-        let mut model = Model::new(
-            &self.method_name(),
-            data.spec.clone(),
-            data.reference_ut,
-            structure,
-            sd,
-        );
+        let mut model = self.named_model(data, structure, sd);
         // Residuals and statistics come from the model as fitted; the identified range (and
         // with it the continuation beyond) is set afterwards, and changes nothing inside it.
         let r = residuals.unwrap_or_else(|| model.residuals(data));

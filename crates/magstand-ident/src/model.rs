@@ -385,9 +385,14 @@ impl Model {
 
     /// Predicted disturbance at a row of a recording: zero with the motors off.
     pub fn dist(&self, rec: &Recording, row: usize, off: Vec3, s: &mut Scratch) -> Vec3 {
-        self.input.regressors(rec, row, &mut s.x);
-        let u = self.input.normalize(self.input.raw(rec, row));
+        let u = self.inputs_into(rec, row, s);
         self.output(u, &s.x, &mut s.phi) - off
+    }
+
+    /// Writes a row's regressors into `s.x` and returns its normalized input.
+    fn inputs_into(&self, rec: &Recording, row: usize, s: &mut Scratch) -> f64 {
+        self.input.regressors(rec, row, &mut s.x);
+        self.input.normalize(self.input.raw(rec, row))
     }
 
     /// Predicted noise standard deviation at a row (zero if the model has no noise model).
@@ -424,8 +429,7 @@ impl Model {
         let mut last: Option<Vec3> = None;
         (0..rec.len())
             .map(|r| {
-                self.input.regressors(rec, r, &mut s.x);
-                let u = self.input.normalize(self.input.raw(rec, r));
+                let u = self.inputs_into(rec, r, &mut s);
                 match last {
                     Some(out)
                         if u.to_bits() == last_u

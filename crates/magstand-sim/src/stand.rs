@@ -239,7 +239,7 @@ impl StandWorld {
 
     /// Adds a stand at rest, its body at the static sag of its mount.
     pub fn add(&mut self, p: &StandParams, motors: &MotorParams) -> StandHandle {
-        let body = p.enabled.then(|| stand_body(p, p.rest_attitude()));
+        let body = p.enabled.then(|| stand_body(p));
         self.stands.push(StandBody::new(p, motors, body));
         StandHandle(self.stands.len() - 1)
     }
@@ -298,12 +298,12 @@ impl StandWorld {
 
 /// A stand's rapier body at rest, at the static sag m g / k of its mount so that the run does
 /// not begin with a bounce.
-fn stand_body(p: &StandParams, rest: UnitQuaternion<f64>) -> RigidBody {
+fn stand_body(p: &StandParams) -> RigidBody {
     let w = std::f64::consts::TAU * p.mount_frequency_hz;
     let inertia = to_glam(Vec3::from(p.inertia_kg_m2));
     let mut body = RigidBodyBuilder::dynamic()
         .translation(Vector::new(0.0, 0.0, GRAVITY_MPS2 / (w * w)))
-        .rotation(to_glam(rest.scaled_axis()))
+        .rotation(to_glam(p.rest_attitude().scaled_axis()))
         .additional_mass_properties(MassProperties::new(Vector::ZERO, p.mass_kg, inertia))
         .can_sleep(false)
         .build();
@@ -355,10 +355,10 @@ fn stand_forces(
 
 /// One step of a body of effective mass `mass` under `force` and `torque` (world frame) and
 /// gravity, as rapier's solver steps a dynamic body that has no contact and no joint, in the
-/// same operations and order (so the same bits): the velocity increment of the forces, the gyroscopic correction at the
-/// step's starting attitude, then the pose by the linearized rotation of the new velocities.
-/// The bounds rapier puts on speed (a quarter turn per step) are far above a stand's motion and
-/// left out.
+/// same operations and order (so the same bits): the velocity increment of the forces, the
+/// gyroscopic correction at the step's starting attitude, then the pose by the linearized
+/// rotation of the new velocities. The bounds rapier puts on speed (a quarter turn per step)
+/// are far above a stand's motion and left out.
 fn integrate(b: &mut RigidBody, force: Vector, torque: Vector, mass: Vector, dt_s: f64) {
     let mprops = b.mass_properties();
     let mut forces = RigidBodyForces {
@@ -530,13 +530,12 @@ mod tests {
         steps: usize,
         dt_s: f64,
     ) -> Vec<[f64; 13]> {
-        let rest = p.rest_attitude();
         let mut world = PhysicsWorld::new();
         world.gravity = Vector::new(0.0, 0.0, GRAVITY_MPS2);
         world.integration_parameters.dt = dt_s;
         // One substep: the stands were stepped so before (the recordings did not change).
         world.integration_parameters.num_solver_iterations = 1;
-        let handle = world.insert_body(stand_body(p, rest));
+        let handle = world.insert_body(stand_body(p));
         let stand = StandBody::new(p, motors, None);
         (0..steps)
             .map(|_| {
