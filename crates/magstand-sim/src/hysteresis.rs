@@ -45,6 +45,9 @@ impl crate::stand_module::ModuleParams for HysteresisParams {
     fn build(&self) -> Box<dyn crate::stand_module::StandModule> {
         Box::new(HysteresisModule::new(self))
     }
+    fn adds_field(&self) -> bool {
+        self.enabled
+    }
 }
 
 /// The play operator: output stays put until the input leaves `[y - w, y + w]`.

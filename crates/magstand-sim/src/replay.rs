@@ -13,7 +13,7 @@ use crate::Scenario;
 use crate::battery::SupplyState;
 use crate::lag::LagFactor;
 use crate::motor::{MotorConstants, MotorParams, MotorState};
-use crate::stand_module::{Electrical, modules};
+use crate::stand_module::{Electrical, field_modules};
 use magstand_core::Vec3;
 use magstand_core::interpolation::{interpolate, locate_increasing};
 
@@ -129,7 +129,8 @@ pub struct Trace {
     pub total_a: Vec<f64>,
     /// Supply voltage, V.
     pub voltage_v: Vec<f64>,
-    /// Every stand module's state per row, by its column name
+    /// The state per row of every stand module that adds a field (one switched off is not
+    /// stepped), by its column name
     /// ([`crate::stand_module::StandModule::column`]: `temp_c`, the board temperature in °C;
     /// `play_a`, the hysteresis play operator's output in A).
     pub modules: Vec<(&'static str, Vec<f64>)>,
@@ -209,7 +210,10 @@ pub fn replay_logged(
     let no_load_v = p.supply.no_load_voltage_v();
     let full_speed = p.motors.steady_speed(0, 1.0, no_load_v).max(1e-9);
     let mut motors = vec![MotorState::default(); n_motors];
-    let mut stand_parts = modules(p);
+    // Only the modules that add a field: the replay is what the diagnosis fits, and a
+    // switched-off module (its field zero, which leaves the sum the same bits) would cost a
+    // step and an exponential per substep for nothing.
+    let mut stand_parts = field_modules(p);
     let all = p
         .wiring
         .gains(n_motors, Vec3::from(p.magnetometer.position_m))
@@ -460,6 +464,10 @@ mod tests {
             bat_v: None,
             bat_a: Some(&measured),
         };
+        // The play adds its field (a replay steps only the modules that do).
+        let mut p = p.clone();
+        p.hysteresis.enabled = true;
+        let p = &p;
         let followed = replay_logged(p, &rec.t_s, &rec.thr, logged, 0.0);
         assert_eq!(followed.total_a, measured);
         assert_eq!(followed.speed, tr.speed, "the motors follow the commands");

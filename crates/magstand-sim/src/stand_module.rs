@@ -49,11 +49,24 @@ pub(crate) trait ModuleParams: std::fmt::Debug {
     fn check(&self, c: &Checker) -> Result<(), SimError>;
     /// The module in its starting state.
     fn build(&self) -> Box<dyn StandModule>;
+    /// Whether the module adds a field at the sensor (it is switched on); one that does not
+    /// still has a state (a board heats whether or not its sensor drifts with it).
+    fn adds_field(&self) -> bool;
 }
 
 /// Every module of the stand `s` describes, in the order their fields are added.
 pub fn modules(s: &Scenario) -> Vec<Box<dyn StandModule>> {
     s.module_params().iter().map(|p| p.build()).collect()
+}
+
+/// The modules of the stand `s` that add a field at the sensor, in the order their fields are
+/// added: what shapes the field, where a switched-off module's state is not wanted.
+pub fn field_modules(s: &Scenario) -> Vec<Box<dyn StandModule>> {
+    s.module_params()
+        .iter()
+        .filter(|p| p.adds_field())
+        .map(|p| p.build())
+        .collect()
 }
 
 /// The state of the module recording `column`, if there is one.

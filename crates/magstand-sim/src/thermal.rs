@@ -56,6 +56,9 @@ impl crate::stand_module::ModuleParams for ThermalParams {
     fn build(&self) -> Box<dyn crate::stand_module::StandModule> {
         Box::new(ThermalModule::new(self))
     }
+    fn adds_field(&self) -> bool {
+        self.enabled
+    }
 }
 
 impl ThermalParams {
