@@ -168,6 +168,11 @@ pub(crate) struct Fitted {
     pub pred: Vec<Vec3>,
     /// Weighted squared residual summed over identification rows and axes.
     pub chi2_fit: f64,
+    /// What uncertainties taken from independent rows are multiplied by for these residuals
+    /// ([`crate::stats::serial_sd_factor`] of the identification rows): already applied to
+    /// `coef_sd`; the nonlinear parameters' uncertainties are multiplied by it where they are
+    /// reported or tested.
+    pub sd_factor: f64,
 }
 
 impl Fitted {
@@ -229,6 +234,7 @@ pub(crate) fn fit(
     }
     let mut pred = design.predict(&coef);
     let mut chi2_fit = 0.0;
+    let mut z: Vec<Vec<f64>> = (0..3).map(|_| Vec::with_capacity(n)).collect();
     for (r, v) in pred.iter_mut().enumerate() {
         if let Some(f) = fixed {
             *v += f[r];
@@ -236,6 +242,17 @@ pub(crate) fn fit(
         if !holdout[r] {
             let e = y[r] - *v;
             chi2_fit += (0..3).map(|a| weights.0[r][a] * e[a] * e[a]).sum::<f64>();
+            for (a, z) in z.iter_mut().enumerate() {
+                z.push(e[a] * weights.0[r][a].max(0.0).sqrt());
+            }
+        }
+    }
+    // The rows' residuals are not independent where the model misses slow structure: the
+    // uncertainties widen by as much.
+    let sd_factor = crate::stats::serial_sd_factor(&z);
+    for sd in &mut coef_sd {
+        for v in sd.iter_mut() {
+            *v *= sd_factor;
         }
     }
     Ok(Fitted {
@@ -243,6 +260,7 @@ pub(crate) fn fit(
         coef_sd,
         pred,
         chi2_fit,
+        sd_factor,
     })
 }
 

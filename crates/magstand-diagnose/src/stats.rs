@@ -17,6 +17,50 @@ pub(crate) fn one_sided_t(x: &[f64]) -> Option<f64> {
     Some(t_sf(mean / (var / n as f64).sqrt(), (n - 1) as f64))
 }
 
+/// Batches of consecutive rows in [`long_run_variance`].
+pub(crate) const VARIANCE_BATCHES: usize = 16;
+
+/// Fewest rows per batch in [`long_run_variance`]; fewer rows than two such batches give
+/// no estimate.
+const MIN_BATCH_ROWS: usize = 32;
+
+/// The long-run variance of a series of standardized residuals in time order, by batch means:
+/// the variance of the means of [`VARIANCE_BATCHES`] batches of consecutive rows (fewer
+/// where the rows are few), times the rows per batch. Independent residuals of unit variance
+/// give about 1; a misfit that runs over many rows gives about the number of rows it spans,
+/// and the variance of an estimate from those rows is that many times what independent rows
+/// would give (exactly so for a mean, and as an upper bound for a regressor that varies as
+/// slowly as the misfit). `None` with too few rows.
+pub(crate) fn long_run_variance(z: &[f64]) -> Option<f64> {
+    let batches = (z.len() / MIN_BATCH_ROWS).min(VARIANCE_BATCHES);
+    if batches < 2 {
+        return None;
+    }
+    let means: Vec<(f64, usize)> = (0..batches)
+        .map(|b| {
+            let part = &z[b * z.len() / batches..(b + 1) * z.len() / batches];
+            (part.iter().sum::<f64>() / part.len() as f64, part.len())
+        })
+        .collect();
+    let mean = z.iter().sum::<f64>() / z.len() as f64;
+    let spread = means.iter().map(|(m, _)| (m - mean).powi(2)).sum::<f64>() / (batches - 1) as f64;
+    Some(spread * (z.len() as f64 / batches as f64))
+}
+
+/// What an uncertainty taken from independent rows is multiplied by for rows whose residuals
+/// (`z`, standardized, per axis, in time order) are serially correlated: the root of their
+/// long-run variance averaged over the axes, at least 1 (an uncertainty is never made
+/// smaller than the independent rows' one).
+pub(crate) fn serial_sd_factor(z: &[Vec<f64>]) -> f64 {
+    let per_axis: Vec<f64> = z.iter().filter_map(|a| long_run_variance(a)).collect();
+    if per_axis.is_empty() {
+        return 1.0;
+    }
+    (per_axis.iter().sum::<f64>() / per_axis.len() as f64)
+        .max(1.0)
+        .sqrt()
+}
+
 /// Upper tail of Student's t with `dof` degrees of freedom.
 pub(crate) fn t_sf(t: f64, dof: f64) -> f64 {
     StudentsT::new(0.0, 1.0, dof.max(1.0)).map_or(1.0, |d| d.sf(t))
@@ -224,6 +268,40 @@ mod tests {
         }
         assert!(signed_rank(&x).unwrap() < 0.01, "{:?}", signed_rank(&x));
         assert!(signed_rank(&[1.0, 0.0, 0.0]).is_none());
+    }
+
+    #[test]
+    fn the_long_run_variance_is_one_for_white_noise_and_the_run_length_for_a_slow_misfit() {
+        // Deterministic white noise of unit variance: a linear congruential sequence.
+        let mut state: u64 = 12345;
+        let mut uniform = || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let white: Vec<f64> = (0..20_000)
+            .map(|_| (uniform() - 0.5) * 12f64.sqrt())
+            .collect();
+        let lrv = long_run_variance(&white).unwrap();
+        assert!((0.3..3.0).contains(&lrv), "white noise: {lrv}");
+        let factor = serial_sd_factor(std::slice::from_ref(&white));
+        assert!(
+            (1.0..1.8).contains(&factor),
+            "white noise: sd factor {factor}"
+        );
+        // The same noise plus a misfit constant over runs of 1,250 rows (one batch each), of
+        // unit size: the batch means vary by about 1, so the long-run variance is about 1,250.
+        let slow: Vec<f64> = white
+            .iter()
+            .enumerate()
+            .map(|(k, z)| z + if (k / 1250) % 2 == 0 { 1.0 } else { -1.0 })
+            .collect();
+        let lrv = long_run_variance(&slow).unwrap();
+        assert!((800.0..2000.0).contains(&lrv), "slow misfit: {lrv}");
+        let factor = serial_sd_factor(&[slow]);
+        assert!((28.0..45.0).contains(&factor), "sd factor {factor}");
+        assert!(long_run_variance(&white[..40]).is_none());
     }
 
     #[test]

@@ -43,23 +43,30 @@ impl ThermalDrift {
         let temp = ctx.rec.temp_c.as_deref()?;
         let p = power_w(trace);
         let t0 = temp[0];
-        let rise_at = |tau: f64| {
+        // The rise that fits best at a time constant, and the residual temperature.
+        let fit_at = |tau: f64| {
             let x = first_order_lag(&trace.t_s, &p, tau);
             let (sxx, sxy) = x
                 .iter()
                 .zip(temp)
                 .fold((0.0, 0.0), |(a, b), (x, t)| (a + x * x, b + x * (t - t0)));
             let rise = if sxx > 0.0 { sxy / sxx } else { 0.0 };
-            let sse: f64 = x
-                .iter()
-                .zip(temp)
-                .map(|(x, t)| (t - t0 - rise * x).powi(2))
-                .sum();
-            (rise, sse)
+            let residual: Vec<f64> = x.iter().zip(temp).map(|(x, t)| t - t0 - rise * x).collect();
+            (rise, residual)
         };
-        // Chi-square with a 0.1 °C temperature error.
-        let o = minimize(&[tau_search()], |th| Some(rise_at(th[0]).1 / 0.01))?;
-        Some((o.theta[0], o.sd[0], rise_at(o.theta[0]).0))
+        let sse = |r: &[f64]| r.iter().map(|v| v * v).sum::<f64>();
+        // Chi-square with a 0.1 °C temperature error, for the search.
+        const ASSUMED_VAR: f64 = 0.01;
+        let o = minimize(&[tau_search()], |th| {
+            Some(sse(&fit_at(th[0]).1) / ASSUMED_VAR)
+        })?;
+        let (rise, residual) = fit_at(o.theta[0]);
+        // The uncertainty at the residual's own variance, widened by its serial correlation
+        // (the replayed power is a model of the heating, and what it misses runs for minutes).
+        let var = sse(&residual) / residual.len().saturating_sub(2).max(1) as f64;
+        let z: Vec<f64> = residual.iter().map(|r| r / var.sqrt().max(1e-12)).collect();
+        let widen = (var / ASSUMED_VAR).sqrt() * crate::stats::serial_sd_factor(&[z]);
+        Some((o.theta[0], o.sd[0].map(|sd| sd * widen), rise))
     }
 }
 

@@ -53,12 +53,19 @@ pub(crate) fn assemble(
         .iter()
         .zip(reports.iter_mut().zip(&last.built.term_columns))
     {
+        // The searches' uncertainties assume independent rows; the final model's residuals
+        // say how far they are not.
+        let theta_sd: Vec<Option<f64>> = t
+            .theta_sd
+            .iter()
+            .map(|sd| sd.map(|sd| sd * last.fitted.sd_factor))
+            .collect();
         report.params = t.effect.switch_on(
             ctx,
             &mut augmented,
             &EffectFit {
                 theta: &t.theta,
-                theta_sd: &t.theta_sd,
+                theta_sd: &theta_sd,
                 coef: &last.fitted.coef[cols.clone()],
                 coef_sd: &last.fitted.coef_sd[cols.clone()],
             },

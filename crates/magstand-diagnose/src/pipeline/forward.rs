@@ -140,10 +140,14 @@ fn refuse_within_stated(c: &mut Candidate, effect: &dyn Effect, ctx: &Context) {
     }
     // An effect that re-fits a stand constant searches that constant alone (asserted for the
     // whole catalog by `every_effect_searches_its_declared_parameters`).
-    let Some((theta, sd, _)) = &c.fitted else {
+    let Some((theta, sd, fitted)) = &c.fitted else {
         return;
     };
-    let shown = sd.first().copied().flatten();
+    let shown = sd
+        .first()
+        .copied()
+        .flatten()
+        .map(|sd| sd * fitted.sd_factor);
     let rejects = shown.is_some_and(|sd| (theta[0] - stated).abs() > REJECT_STATED_SD * sd);
     let fitted = crate::diagnosis::value_with_sd(theta[0], shown);
     let why_not = if !rejects {
