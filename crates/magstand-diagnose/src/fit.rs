@@ -78,8 +78,18 @@ impl Design {
         self.names
             .iter()
             .zip(self.columns.iter_mut())
-            .filter(|(name, _)| *name != "reference" && *name != "current_a")
+            .filter(|(name, _)| is_current_law(name))
             .map(|(_, c)| c.as_mut_slice())
+    }
+
+    /// The columns of the baseline's current law with their names, as
+    /// [`Design::current_law_columns_mut`] selects them.
+    pub fn current_law_columns(&self) -> impl Iterator<Item = (&str, &[f64])> {
+        self.names
+            .iter()
+            .zip(&self.columns)
+            .filter(|(name, _)| is_current_law(name))
+            .map(|(name, c)| (name.as_str(), c.as_slice()))
     }
 
     pub fn push(&mut self, name: impl Into<String>, column: Vec<f64>) {
@@ -90,6 +100,12 @@ impl Design {
     pub fn len(&self) -> usize {
         self.columns.len()
     }
+}
+
+/// Whether a baseline column is one of its current law's (not the motors-off `reference` or a
+/// measured `current_a`).
+fn is_current_law(name: &str) -> bool {
+    name != "reference" && name != "current_a"
 }
 
 /// Adds one motor's `driven * speed^k` to the columns of the first `K` powers, in one pass

@@ -142,7 +142,13 @@ impl Effect for BatterySag {
     fn uses_recorded_voltage(&self, ctx: &Context) -> bool {
         ctx.rec.bat_v.is_some()
     }
-    fn regressors(&self, ctx: &Context, trace: &Trace, _theta: &[f64]) -> Vec<(String, Vec<f64>)> {
+    fn regressors(
+        &self,
+        ctx: &Context,
+        trace: &Trace,
+        law: &[(&str, &[f64])],
+        _theta: &[f64],
+    ) -> Vec<(String, Vec<f64>)> {
         // With the voltage logged, the replay follows it through the nominal motor, whose
         // current grows about as the voltage squared at a fixed command (speed with the
         // voltage, propeller load with the speed squared). Another stand's current may follow
@@ -175,15 +181,16 @@ impl Effect for BatterySag {
                     .collect(),
             )];
         }
+        // The baseline's own current-law columns, as this model has them (lagged with the
+        // currents' field where a term lags it).
         let change: Vec<f64> = change.collect();
-        let mut law = crate::fit::Design::baseline(trace, false, ctx.speed_powers);
-        law.current_law_columns_mut()
-            .for_each(|c| c.iter_mut().zip(&change).for_each(|(x, d)| *x *= d));
-        law.names
-            .into_iter()
-            .zip(law.columns)
-            .filter(|(name, _)| name != "reference")
-            .map(|(name, c)| (format!("voltage_change_x_{name}"), c))
+        law.iter()
+            .map(|(name, law)| {
+                (
+                    format!("voltage_change_x_{name}"),
+                    law.iter().zip(&change).map(|(x, d)| x * d).collect(),
+                )
+            })
             .collect()
     }
     fn switch_on(&self, ctx: &Context, s: &mut Scenario, f: &EffectFit) -> Vec<Param> {

@@ -89,7 +89,13 @@ impl Effect for CurrentLag {
         }
         searched_params(&self.search(ctx), fitted)
     }
-    fn regressors(&self, ctx: &Context, trace: &Trace, theta: &[f64]) -> Vec<(String, Vec<f64>)> {
+    fn regressors(
+        &self,
+        ctx: &Context,
+        trace: &Trace,
+        _law: &[(&str, &[f64])],
+        theta: &[f64],
+    ) -> Vec<(String, Vec<f64>)> {
         if !ctx.follow_recorded_current {
             return Vec::new();
         }

@@ -49,7 +49,13 @@ impl Effect for Hysteresis {
         // replayed scenario, so every play searched shares one replay of the motors.
         s.hysteresis.enabled = false;
     }
-    fn regressors(&self, ctx: &Context, trace: &Trace, theta: &[f64]) -> Vec<(String, Vec<f64>)> {
+    fn regressors(
+        &self,
+        ctx: &Context,
+        trace: &Trace,
+        _law: &[(&str, &[f64])],
+        theta: &[f64],
+    ) -> Vec<(String, Vec<f64>)> {
         let Some(p) = Play::from_slice(theta) else {
             return Vec::new();
         };

@@ -202,10 +202,13 @@ pub trait Effect: Sync + Send {
     }
 
     /// Regressor columns the effect adds (each gets one coefficient per axis), with names.
+    /// `law` is the baseline's current law as this model has it, each column by name (built
+    /// from `trace`, and lagged where a term lags the currents' field).
     fn regressors(
         &self,
         _ctx: &Context,
         _trace: &Trace,
+        _law: &[(&str, &[f64])],
         _theta: &[f64],
     ) -> Vec<(String, Vec<f64>)> {
         Vec::new()

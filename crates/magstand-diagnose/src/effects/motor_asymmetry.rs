@@ -58,7 +58,13 @@ impl Effect for MotorAsymmetry {
     fn search(&self, _ctx: &Context) -> Vec<Search> {
         Vec::new()
     }
-    fn regressors(&self, _ctx: &Context, trace: &Trace, _theta: &[f64]) -> Vec<(String, Vec<f64>)> {
+    fn regressors(
+        &self,
+        _ctx: &Context,
+        trace: &Trace,
+        _law: &[(&str, &[f64])],
+        _theta: &[f64],
+    ) -> Vec<(String, Vec<f64>)> {
         let n = trace.current_a.len();
         (0..n - 1)
             .map(|m| {

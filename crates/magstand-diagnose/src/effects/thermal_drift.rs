@@ -88,7 +88,13 @@ impl Effect for ThermalDrift {
             vec![tau_search()]
         }
     }
-    fn regressors(&self, ctx: &Context, trace: &Trace, theta: &[f64]) -> Vec<(String, Vec<f64>)> {
+    fn regressors(
+        &self,
+        ctx: &Context,
+        trace: &Trace,
+        _law: &[(&str, &[f64])],
+        theta: &[f64],
+    ) -> Vec<(String, Vec<f64>)> {
         match ctx.rec.temp_c.as_deref() {
             Some(t) => vec![("temp_rise_c".into(), t.iter().map(|v| v - t[0]).collect())],
             // Temperature rise per (°C/W): the lagged power, W.

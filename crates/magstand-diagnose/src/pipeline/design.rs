@@ -141,10 +141,16 @@ pub(crate) fn build_with_lead(ctx: &Context, terms: &[(&dyn Effect, &[f64])], le
             lag_current_field(&trace.t_s, &mut design, &mut fixed, tau_s);
         }
     }
+    // Every term's columns, from the baseline's current law as built.
+    let law: Vec<(&str, &[f64])> = design.current_law_columns().collect();
+    let added: Vec<Vec<(String, Vec<f64>)>> = terms
+        .iter()
+        .map(|(e, theta)| e.regressors(ctx, trace, &law, theta))
+        .collect();
     let mut term_columns = Vec::new();
-    for (e, theta) in terms {
+    for columns in added {
         let start = design.len();
-        for (name, col) in e.regressors(ctx, trace, theta) {
+        for (name, col) in columns {
             design.push(name, col);
         }
         term_columns.push(start..design.len());
@@ -287,4 +293,93 @@ fn timing_spread(ctx: &Context, terms: &[Term], coef: &[[f64; 3]]) -> Vec<Vec3> 
     (0..a.len())
         .map(|r| (b[r] + late.fixed[r]) - (a[r] + early.fixed[r]))
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use magstand_core::Recording;
+
+    /// Regression: with `bat_v` logged, `battery_sag` rebuilt the baseline's current law from
+    /// the replay for its columns (the voltage's change times each law column), beside the one
+    /// the design had just built. Where a slow current lag lags the currents' field, the
+    /// design's law is lagged and the rebuilt one was not: the battery's columns followed a
+    /// current the model no longer had. They are now the design's own law columns times the
+    /// change.
+    #[test]
+    fn the_battery_follows_the_law_the_model_has() {
+        let t_s: Vec<f64> = (0..3000).map(|k| k as f64 * 0.02).collect();
+        let thr: Vec<f64> = t_s
+            .iter()
+            .map(|t| ((t / 3.0).floor() % 9.0 + 1.0) / 10.0)
+            .collect();
+        let bat_v: Vec<f64> = t_s.iter().map(|t| 12.0 - 0.01 * t).collect();
+        let rec = Recording {
+            mag_ut: vec![Vec3::zeros(); t_s.len()],
+            thr: vec![thr],
+            overall_only: true,
+            bat_v: Some(bat_v.clone()),
+            t_s,
+            ..Default::default()
+        };
+        let nominal = crate::unstated_nominal().unwrap().into_inner();
+        let split = super::super::held_out_split(&rec.t_s, None, 3);
+        let nominal_trace = magstand_sim::replay::replay(&nominal, &rec.t_s, &rec.thr, None, 0.5);
+        let ctx = Context {
+            rec: &rec,
+            nominal: &nominal,
+            split: &split,
+            nominal_trace: &nominal_trace,
+            rec_origin: "inline".into(),
+            command_lead: 0.5,
+            flight: false,
+            follow_recorded_voltage: false,
+            follow_recorded_current: false,
+            speed_powers: crate::fit::MIN_SPEED_POWERS,
+            replays: Default::default(),
+        };
+        let catalog = crate::effects::catalog();
+        let effect = |name: &str| {
+            catalog
+                .iter()
+                .find(|e| e.name() == name)
+                .map(|e| e.as_ref())
+                .unwrap_or_else(|| panic!("no {name}"))
+        };
+        let (lag, battery) = (effect("current_lag"), effect("battery_sag"));
+        let lagged = build(&ctx, &[(lag, &[0.8]), (battery, &[])]);
+        let plain = build(&ctx, &[(battery, &[])]);
+        let reference_v = nominal.supply.no_load_voltage_v();
+        // The baseline's own columns: those before the first term's.
+        let baseline = Design {
+            names: lagged.design.names[..lagged.term_columns[0].start].to_vec(),
+            columns: lagged.design.columns[..lagged.term_columns[0].start].to_vec(),
+        };
+        let law: Vec<(&str, &[f64])> = baseline.current_law_columns().collect();
+        let battery_columns = lagged.term_columns[1].clone();
+        assert_eq!(
+            battery_columns.len(),
+            law.len(),
+            "one column per law column"
+        );
+        let mut differs = false;
+        for ((name, law), k) in law.iter().zip(battery_columns) {
+            assert_eq!(lagged.design.names[k], format!("voltage_change_x_{name}"));
+            for r in 0..rec.len() {
+                let expected = law[r] * ((bat_v[r] - reference_v) / reference_v);
+                assert_eq!(
+                    lagged.design.columns[k][r].to_bits(),
+                    expected.to_bits(),
+                    "{name} row {r}: {} against the lagged law's {expected}",
+                    lagged.design.columns[k][r]
+                );
+            }
+            let unlagged = &plain.design.columns[plain.term_columns[0].clone()][0];
+            differs |= k == lagged.term_columns[1].start && unlagged != &lagged.design.columns[k];
+        }
+        assert!(
+            differs,
+            "the lag changed nothing: the test would not see the old columns"
+        );
+    }
 }
