@@ -295,6 +295,49 @@ fn lag_columns(t_s: &[f64], columns: &mut [&mut [f64]], tau_s: f64, settled: boo
     }
 }
 
+/// A recording on the default unstated nominal stand with what a [`Context`] borrows: its
+/// split, and its nominal replay.
+#[cfg(test)]
+pub(crate) struct TestStand {
+    rec: Recording,
+    nominal: Scenario,
+    split: Split,
+    trace: Trace,
+}
+
+#[cfg(test)]
+impl TestStand {
+    /// The stand for `rec`.
+    pub(crate) fn new(rec: Recording) -> Self {
+        let nominal = crate::unstated_nominal().unwrap().into_inner();
+        let split = crate::pipeline::held_out_split(&rec.t_s, None, 3);
+        let trace = magstand_sim::replay::replay(&nominal, &rec.t_s, &rec.thr, None, 0.5);
+        Self {
+            rec,
+            nominal,
+            split,
+            trace,
+        }
+    }
+
+    /// A context of a stand recording (no flight, the supply modelled) at lead 0.5.
+    pub(crate) fn context(&self) -> Context<'_> {
+        Context {
+            rec: &self.rec,
+            nominal: &self.nominal,
+            split: &self.split,
+            nominal_trace: &self.trace,
+            rec_origin: "inline".into(),
+            command_lead: 0.5,
+            flight: false,
+            follow_recorded_voltage: false,
+            follow_recorded_current: false,
+            speed_powers: crate::fit::MIN_SPEED_POWERS,
+            replays: Default::default(),
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -367,22 +410,8 @@ mod tests {
             t_s,
             ..Default::default()
         };
-        let nominal = crate::unstated_nominal().unwrap().into_inner();
-        let split = crate::pipeline::held_out_split(&rec.t_s, None, 3);
-        let nominal_trace = magstand_sim::replay::replay(&nominal, &rec.t_s, &rec.thr, None, 0.5);
-        let ctx = Context {
-            rec: &rec,
-            nominal: &nominal,
-            split: &split,
-            nominal_trace: &nominal_trace,
-            rec_origin: "inline".into(),
-            command_lead: 0.5,
-            flight: false,
-            follow_recorded_voltage: false,
-            follow_recorded_current: false,
-            speed_powers: crate::fit::MIN_SPEED_POWERS,
-            replays: Default::default(),
-        };
+        let stand = TestStand::new(rec);
+        let ctx = stand.context();
         for e in catalog() {
             let searched: Vec<_> = e.search(&ctx).iter().map(|s| s.name).collect();
             assert_eq!(searched, e.parameters(), "effect {}", e.name());

@@ -314,30 +314,16 @@ mod tests {
             .map(|t| ((t / 3.0).floor() % 9.0 + 1.0) / 10.0)
             .collect();
         let bat_v: Vec<f64> = t_s.iter().map(|t| 12.0 - 0.01 * t).collect();
-        let rec = Recording {
-            mag_ut: vec![Vec3::zeros(); t_s.len()],
+        let rows = t_s.len();
+        let stand = crate::effects::TestStand::new(Recording {
+            mag_ut: vec![Vec3::zeros(); rows],
             thr: vec![thr],
             overall_only: true,
             bat_v: Some(bat_v.clone()),
             t_s,
             ..Default::default()
-        };
-        let nominal = crate::unstated_nominal().unwrap().into_inner();
-        let split = super::super::held_out_split(&rec.t_s, None, 3);
-        let nominal_trace = magstand_sim::replay::replay(&nominal, &rec.t_s, &rec.thr, None, 0.5);
-        let ctx = Context {
-            rec: &rec,
-            nominal: &nominal,
-            split: &split,
-            nominal_trace: &nominal_trace,
-            rec_origin: "inline".into(),
-            command_lead: 0.5,
-            flight: false,
-            follow_recorded_voltage: false,
-            follow_recorded_current: false,
-            speed_powers: crate::fit::MIN_SPEED_POWERS,
-            replays: Default::default(),
-        };
+        });
+        let ctx = stand.context();
         let catalog = crate::effects::catalog();
         let effect = |name: &str| {
             catalog
@@ -349,7 +335,7 @@ mod tests {
         let (lag, battery) = (effect("current_lag"), effect("battery_sag"));
         let lagged = build(&ctx, &[(lag, &[0.8]), (battery, &[])]);
         let plain = build(&ctx, &[(battery, &[])]);
-        let reference_v = nominal.supply.no_load_voltage_v();
+        let reference_v = ctx.nominal.supply.no_load_voltage_v();
         // The baseline's own columns: those before the first term's.
         let baseline = Design {
             names: lagged.design.names[..lagged.term_columns[0].start].to_vec(),
@@ -365,7 +351,7 @@ mod tests {
         let mut differs = false;
         for ((name, law), k) in law.iter().zip(battery_columns) {
             assert_eq!(lagged.design.names[k], format!("voltage_change_x_{name}"));
-            for r in 0..rec.len() {
+            for r in 0..rows {
                 let expected = law[r] * ((bat_v[r] - reference_v) / reference_v);
                 assert_eq!(
                     lagged.design.columns[k][r].to_bits(),
