@@ -102,20 +102,52 @@ fn brent(a: f64, b: f64, tolerance: f64, f: impl Fn(f64) -> f64) -> Option<(f64,
     Some((state.best_param?, state.best_cost))
 }
 
-/// Minimizes `f` (None where the fit fails) over the searches.
-pub(crate) fn minimize(
-    searches: &[Search],
-    f: impl Fn(&[f64]) -> Option<f64> + Sync,
-) -> Option<Optimum> {
-    // The objective in search coordinates: infinite where the fit fails.
-    let eval = |u: &[f64]| -> f64 {
+/// The objective `f` in search coordinates: infinite where the fit fails.
+fn in_search_coordinates<'a>(
+    searches: &'a [Search],
+    f: &'a (impl Fn(&[f64]) -> Option<f64> + Sync),
+) -> impl Fn(&[f64]) -> f64 + Sync + 'a {
+    move |u: &[f64]| -> f64 {
         let theta: Vec<f64> = searches
             .iter()
             .zip(u)
             .map(|(s, &u)| s.value_at(u))
             .collect();
         f(&theta).filter(|v| v.is_finite()).unwrap_or(f64::INFINITY)
-    };
+    }
+}
+
+/// Minimizes `f` again from `theta`, the optimum of an objective close to it (the same search
+/// after another term's parameters moved a little): Brent's refinement within a grid step of
+/// each parameter, without the grid over the whole range. Falls back to [`minimize`] where `f`
+/// cannot be evaluated at `theta`.
+pub(crate) fn minimize_from(
+    searches: &[Search],
+    theta: &[f64],
+    f: impl Fn(&[f64]) -> Option<f64> + Sync,
+) -> Option<Optimum> {
+    let eval = in_search_coordinates(searches, &f);
+    let start: Vec<f64> = searches
+        .iter()
+        .zip(theta)
+        .map(|(s, &v)| {
+            let (lo, hi) = s.u_range();
+            s.unit_of(v).clamp(lo, hi)
+        })
+        .collect();
+    let value = eval(&start);
+    if start.len() != searches.len() || !value.is_finite() {
+        return minimize(searches, &f);
+    }
+    polish(searches, start, value, &eval)
+}
+
+/// Minimizes `f` (None where the fit fails) over the searches.
+pub(crate) fn minimize(
+    searches: &[Search],
+    f: impl Fn(&[f64]) -> Option<f64> + Sync,
+) -> Option<Optimum> {
+    let eval = in_search_coordinates(searches, &f);
     if searches.is_empty() {
         let value = eval(&[]);
         return value.is_finite().then(|| Optimum {
@@ -314,6 +346,33 @@ mod tests {
         assert!((o.theta[0] - 0.37).abs() < 1e-4, "{:?}", o.theta);
         let sd = o.sd[0].unwrap();
         assert!((sd - 0.02).abs() < 1e-4, "sd {sd}");
+    }
+
+    #[test]
+    fn a_search_from_a_nearby_optimum_refines_it_without_the_grid() {
+        use std::sync::atomic::{AtomicUsize, Ordering};
+        let calls = AtomicUsize::new(0);
+        let f = |t: &[f64]| {
+            calls.fetch_add(1, Ordering::Relaxed);
+            Some(((t[0] - 0.37) / 0.02).powi(2))
+        };
+        let s = [search("x", 0.0, 1.0, false)];
+        let o = minimize_from(&s, &[0.40], f).unwrap();
+        assert!((o.theta[0] - 0.37).abs() < 1e-4, "{:?}", o.theta);
+        assert!((o.sd[0].unwrap() - 0.02).abs() < 1e-4, "{:?}", o.sd);
+        let near = calls.swap(0, Ordering::Relaxed);
+        minimize(&s, f).unwrap();
+        let whole = calls.load(Ordering::Relaxed);
+        assert!(
+            near < whole,
+            "{near} evaluations from nearby, {whole} over the range"
+        );
+        // Where the start cannot be evaluated, the whole range is searched.
+        let o = minimize_from(&s, &[0.9], |t| {
+            (t[0] < 0.8).then(|| ((t[0] - 0.37) / 0.02).powi(2))
+        })
+        .unwrap();
+        assert!((o.theta[0] - 0.37).abs() < 1e-4, "{:?}", o.theta);
     }
 
     #[test]

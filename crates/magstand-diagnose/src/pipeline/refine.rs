@@ -3,7 +3,7 @@
 //! offered to the next round as a new effect.
 use crate::effects::Context;
 use crate::fit::Weights;
-use crate::optimize::{Search, minimize};
+use crate::optimize::{Search, minimize, minimize_from};
 
 use super::design::{Term, as_refs, chi2_of};
 
@@ -11,8 +11,9 @@ use super::design::{Term, as_refs, chi2_of};
 const REFINE_PASSES: usize = 2;
 
 /// Refits the nonlinear parameters of all accepted terms and the command lead together, by
-/// coordinate search: each term's parameters (over its whole search range) with the others
-/// held, then the lead, [`REFINE_PASSES`] times.
+/// coordinate search: each term's parameters with the others held, then the lead,
+/// [`REFINE_PASSES`] times; the first pass over each one's whole search range, the later
+/// ones within a grid step of what the pass before found.
 ///
 /// A search whose objective is the one it was last run on (the same other parameters and
 /// lead, bit for bit) is not run again: it would find the same optimum, and each of its grid
@@ -24,7 +25,7 @@ pub(crate) fn refine(ctx: &mut Context, terms: &mut [Term], weights: &Weights) {
         *last = Some(objective_key(ctx, terms, terms.len() - 1));
     }
     let mut timed_at = None;
-    for _ in 0..REFINE_PASSES {
+    for pass in 0..REFINE_PASSES {
         for k in 0..terms.len() {
             let searches = terms[k].effect.search(ctx);
             let key = objective_key(ctx, terms, k);
@@ -36,7 +37,16 @@ pub(crate) fn refine(ctx: &mut Context, terms: &mut [Term], weights: &Weights) {
                 refs[k].1 = theta;
                 chi2_of(ctx, &refs, ctx.command_lead, weights)
             };
-            if let Some(opt) = minimize(&searches, chi2) {
+            // The first pass searches each term over its whole range (a new term can move
+            // another's optimum to another basin: a dead zone between two logged command
+            // levels); the second only refines what the first found, the others having
+            // moved by their own refinement since.
+            let found = if pass == 0 {
+                minimize(&searches, chi2)
+            } else {
+                minimize_from(&searches, &terms[k].theta, chi2)
+            };
+            if let Some(opt) = found {
                 terms[k].theta = opt.theta;
                 terms[k].theta_sd = opt.sd;
             }
@@ -44,7 +54,9 @@ pub(crate) fn refine(ctx: &mut Context, terms: &mut [Term], weights: &Weights) {
         }
         let key = objective_key(ctx, terms, TIMING);
         if timed_at.as_ref() != Some(&key) {
-            ctx.command_lead = calibrate_timing(ctx, terms, weights);
+            // The lead as the terms: over its whole range first, then near where it was.
+            let from = (pass > 0).then_some(ctx.command_lead);
+            ctx.command_lead = calibrate_timing_from(ctx, terms, weights, from);
             timed_at = Some(key);
         }
     }
@@ -68,17 +80,29 @@ fn objective_key(ctx: &Context, terms: &[Term], skip: usize) -> Vec<u64> {
 /// The moment within each interval at which logged command changes take effect, searched in
 /// 0..1.
 pub(crate) fn calibrate_timing(ctx: &Context, terms: &[Term], weights: &Weights) -> f64 {
+    calibrate_timing_from(ctx, terms, weights, None)
+}
+
+/// [`calibrate_timing`], searched near `from` (a lead found for a nearby model) when given.
+fn calibrate_timing_from(
+    ctx: &Context,
+    terms: &[Term],
+    weights: &Weights,
+    from: Option<f64>,
+) -> f64 {
     let refs = as_refs(terms);
-    minimize(
-        &[Search {
-            name: "command_lead",
-            unit: "interval",
-            lo: 0.0,
-            hi: 1.0,
-            log: false,
-            points: 5,
-        }],
-        |t| chi2_of(ctx, &refs, t[0], weights),
-    )
+    let search = [Search {
+        name: "command_lead",
+        unit: "interval",
+        lo: 0.0,
+        hi: 1.0,
+        log: false,
+        points: 5,
+    }];
+    let chi2 = |t: &[f64]| chi2_of(ctx, &refs, t[0], weights);
+    match from {
+        Some(lead) => minimize_from(&search, &[lead], chi2),
+        None => minimize(&search, chi2),
+    }
     .map_or(0.5, |o| o.theta[0])
 }
