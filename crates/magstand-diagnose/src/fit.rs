@@ -5,6 +5,8 @@ use magstand_core::Vec3;
 use magstand_ident::least_squares::{NormalEquations, SharedRowEquations, SolveError};
 use magstand_sim::replay::Trace;
 
+use crate::stats::BatchMeans;
+
 /// Regressor columns (one value per row each) with their names.
 #[derive(Debug, Clone, Default)]
 pub(crate) struct Design {
@@ -185,7 +187,7 @@ pub(crate) struct Fitted {
     /// Weighted squared residual summed over identification rows and axes.
     pub chi2_fit: f64,
     /// What uncertainties taken from independent rows are multiplied by for these residuals
-    /// ([`crate::stats::serial_sd_factor`] of the identification rows): already applied to
+    /// ([`BatchMeans::sd_factor`] of the identification rows): already applied to
     /// `coef_sd`; the nonlinear parameters' uncertainties are multiplied by it where they are
     /// reported or tested.
     pub sd_factor: f64,
@@ -250,7 +252,7 @@ pub(crate) fn fit(
     }
     let mut pred = design.predict(&coef);
     let mut chi2_fit = 0.0;
-    let mut z: Vec<Vec<f64>> = (0..3).map(|_| Vec::with_capacity(n)).collect();
+    let mut batches = BatchMeans::new(holdout.iter().filter(|h| !**h).count(), 3);
     for (r, v) in pred.iter_mut().enumerate() {
         if let Some(f) = fixed {
             *v += f[r];
@@ -258,14 +260,14 @@ pub(crate) fn fit(
         if !holdout[r] {
             let e = y[r] - *v;
             chi2_fit += (0..3).map(|a| weights.0[r][a] * e[a] * e[a]).sum::<f64>();
-            for (a, z) in z.iter_mut().enumerate() {
-                z.push(e[a] * weights.0[r][a].max(0.0).sqrt());
-            }
+            batches.push(&std::array::from_fn::<f64, 3, _>(|a| {
+                e[a] * weights.0[r][a].max(0.0).sqrt()
+            }));
         }
     }
     // The rows' residuals are not independent where the model misses slow structure: the
     // uncertainties widen by as much.
-    let sd_factor = crate::stats::serial_sd_factor(&z);
+    let sd_factor = batches.sd_factor();
     for sd in &mut coef_sd {
         for v in sd.iter_mut() {
             *v *= sd_factor;

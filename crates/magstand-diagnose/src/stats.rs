@@ -24,41 +24,94 @@ pub(crate) const VARIANCE_BATCHES: usize = 16;
 /// no estimate.
 const MIN_BATCH_ROWS: usize = 32;
 
-/// The long-run variance of a series of standardized residuals in time order, by batch means:
-/// the variance of the means of [`VARIANCE_BATCHES`] batches of consecutive rows (fewer
-/// where the rows are few), times the rows per batch. Independent residuals of unit variance
-/// give about 1; a misfit that runs over many rows gives about the number of rows it spans,
-/// and the variance of an estimate from those rows is that many times what independent rows
-/// would give (exactly so for a mean, and as an upper bound for a regressor that varies as
-/// slowly as the misfit). `None` with too few rows.
-pub(crate) fn long_run_variance(z: &[f64]) -> Option<f64> {
-    let batches = (z.len() / MIN_BATCH_ROWS).min(VARIANCE_BATCHES);
-    if batches < 2 {
-        return None;
-    }
-    let means: Vec<(f64, usize)> = (0..batches)
-        .map(|b| {
-            let part = &z[b * z.len() / batches..(b + 1) * z.len() / batches];
-            (part.iter().sum::<f64>() / part.len() as f64, part.len())
-        })
-        .collect();
-    let mean = z.iter().sum::<f64>() / z.len() as f64;
-    let spread = means.iter().map(|(m, _)| (m - mean).powi(2)).sum::<f64>() / (batches - 1) as f64;
-    Some(spread * (z.len() as f64 / batches as f64))
+/// The long-run variance of series of standardized residuals in time order (one per axis), by
+/// batch means: the variance of the means of [`VARIANCE_BATCHES`] batches of consecutive rows
+/// (fewer where the rows are few), times the rows per batch. Independent residuals of unit
+/// variance give about 1; a misfit that runs over many rows gives about the number of rows it
+/// spans, and the variance of an estimate from those rows is that many times what independent
+/// rows would give (exactly so for a mean, and as an upper bound for a regressor that varies
+/// as slowly as the misfit). The rows are pushed one at a time, so a fit keeps no copy of its
+/// residuals for it.
+pub(crate) struct BatchMeans {
+    rows: usize,
+    batches: usize,
+    /// Rows pushed so far, the batch they fill and where it ends.
+    seen: usize,
+    batch: usize,
+    batch_end: usize,
+    /// Sum of each batch per axis, and of every row per axis (in row order).
+    sums: Vec<Vec<f64>>,
+    total: Vec<f64>,
 }
 
-/// What an uncertainty taken from independent rows is multiplied by for rows whose residuals
-/// (`z`, standardized, per axis, in time order) are serially correlated: the root of their
-/// long-run variance averaged over the axes, at least 1 (an uncertainty is never made
-/// smaller than the independent rows' one).
-pub(crate) fn serial_sd_factor(z: &[Vec<f64>]) -> f64 {
-    let per_axis: Vec<f64> = z.iter().filter_map(|a| long_run_variance(a)).collect();
-    if per_axis.is_empty() {
-        return 1.0;
+impl BatchMeans {
+    /// Batches for `rows` rows of `axes` residuals each.
+    pub(crate) fn new(rows: usize, axes: usize) -> Self {
+        let batches = (rows / MIN_BATCH_ROWS).min(VARIANCE_BATCHES);
+        BatchMeans {
+            rows,
+            batches,
+            seen: 0,
+            batch: 0,
+            batch_end: rows / batches.max(1),
+            sums: vec![vec![0.0; axes]; batches],
+            total: vec![0.0; axes],
+        }
     }
-    (per_axis.iter().sum::<f64>() / per_axis.len() as f64)
-        .max(1.0)
-        .sqrt()
+
+    /// Adds the next row's residuals (one per axis); rows beyond those announced are ignored.
+    pub(crate) fn push(&mut self, z: &[f64]) {
+        if self.batches < 2 || self.seen >= self.rows {
+            return;
+        }
+        while self.seen >= self.batch_end {
+            self.batch += 1;
+            self.batch_end = (self.batch + 1) * self.rows / self.batches;
+        }
+        for ((s, t), v) in self.sums[self.batch].iter_mut().zip(&mut self.total).zip(z) {
+            *s += v;
+            *t += v;
+        }
+        self.seen += 1;
+    }
+
+    /// The long-run variance of axis `a`, or `None` with too few rows.
+    pub(crate) fn long_run_variance(&self, a: usize) -> Option<f64> {
+        if self.batches < 2 || self.seen < self.rows {
+            return None;
+        }
+        let mean = self.total[a] / self.rows as f64;
+        let spread = (0..self.batches)
+            .map(|b| {
+                let len = (b + 1) * self.rows / self.batches - b * self.rows / self.batches;
+                (self.sums[b][a] / len as f64 - mean).powi(2)
+            })
+            .sum::<f64>()
+            / (self.batches - 1) as f64;
+        Some(spread * (self.rows as f64 / self.batches as f64))
+    }
+
+    /// What an uncertainty taken from independent rows is multiplied by for these rows: the
+    /// root of their long-run variance averaged over the axes, at least 1 (an uncertainty is
+    /// never made smaller than the independent rows' one).
+    pub(crate) fn sd_factor(&self) -> f64 {
+        let per_axis: Vec<f64> = (0..self.total.len())
+            .filter_map(|a| self.long_run_variance(a))
+            .collect();
+        if per_axis.is_empty() {
+            return 1.0;
+        }
+        (per_axis.iter().sum::<f64>() / per_axis.len() as f64)
+            .max(1.0)
+            .sqrt()
+    }
+}
+
+/// [`BatchMeans::sd_factor`] of one series.
+pub(crate) fn serial_sd_factor(z: &[f64]) -> f64 {
+    let mut b = BatchMeans::new(z.len(), 1);
+    z.iter().for_each(|v| b.push(&[*v]));
+    b.sd_factor()
 }
 
 /// Upper tail of Student's t with `dof` degrees of freedom.
@@ -272,6 +325,11 @@ mod tests {
 
     #[test]
     fn the_long_run_variance_is_one_for_white_noise_and_the_run_length_for_a_slow_misfit() {
+        let long_run_variance = |z: &[f64]| {
+            let mut b = BatchMeans::new(z.len(), 1);
+            z.iter().for_each(|v| b.push(&[*v]));
+            b.long_run_variance(0)
+        };
         // Deterministic white noise of unit variance: a linear congruential sequence.
         let mut state: u64 = 12345;
         let mut uniform = || {
@@ -285,7 +343,7 @@ mod tests {
             .collect();
         let lrv = long_run_variance(&white).unwrap();
         assert!((0.3..3.0).contains(&lrv), "white noise: {lrv}");
-        let factor = serial_sd_factor(std::slice::from_ref(&white));
+        let factor = serial_sd_factor(&white);
         assert!(
             (1.0..1.8).contains(&factor),
             "white noise: sd factor {factor}"
@@ -299,7 +357,7 @@ mod tests {
             .collect();
         let lrv = long_run_variance(&slow).unwrap();
         assert!((800.0..2000.0).contains(&lrv), "slow misfit: {lrv}");
-        let factor = serial_sd_factor(&[slow]);
+        let factor = serial_sd_factor(&slow);
         assert!((28.0..45.0).contains(&factor), "sd factor {factor}");
         assert!(long_run_variance(&white[..40]).is_none());
     }

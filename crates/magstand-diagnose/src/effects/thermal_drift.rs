@@ -65,7 +65,7 @@ impl ThermalDrift {
         // (the replayed power is a model of the heating, and what it misses runs for minutes).
         let var = sse(&residual) / residual.len().saturating_sub(2).max(1) as f64;
         let z: Vec<f64> = residual.iter().map(|r| r / var.sqrt().max(1e-12)).collect();
-        let widen = (var / ASSUMED_VAR).sqrt() * crate::stats::serial_sd_factor(&[z]);
+        let widen = (var / ASSUMED_VAR).sqrt() * crate::stats::serial_sd_factor(&z);
         Some((o.theta[0], o.sd[0].map(|sd| sd * widen), rise))
     }
 }
