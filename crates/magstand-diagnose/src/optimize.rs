@@ -117,15 +117,18 @@ fn in_search_coordinates<'a>(
     }
 }
 
-/// Minimizes `f` again from `theta`, the optimum of an objective close to it (the same search
-/// after another term's parameters moved a little): Brent's refinement within a grid step of
-/// each parameter, without the grid over the whole range. Falls back to [`minimize`] where `f`
-/// cannot be evaluated at `theta`.
-pub(crate) fn minimize_from(
+/// [`minimize`] over the whole range, or, `from` the optimum of an objective close to this
+/// one (the same search after another term's parameters moved a little), Brent's refinement
+/// within a grid step of each parameter without the grid. The whole range is searched where
+/// `f` cannot be evaluated at `from`.
+pub(crate) fn minimize_near(
     searches: &[Search],
-    theta: &[f64],
+    from: Option<&[f64]>,
     f: impl Fn(&[f64]) -> Option<f64> + Sync,
 ) -> Option<Optimum> {
+    let Some(theta) = from.filter(|t| t.len() == searches.len()) else {
+        return minimize(searches, f);
+    };
     let eval = in_search_coordinates(searches, &f);
     let start: Vec<f64> = searches
         .iter()
@@ -136,7 +139,7 @@ pub(crate) fn minimize_from(
         })
         .collect();
     let value = eval(&start);
-    if start.len() != searches.len() || !value.is_finite() {
+    if !value.is_finite() {
         return minimize(searches, &f);
     }
     polish(searches, start, value, &eval)
@@ -357,7 +360,7 @@ mod tests {
             Some(((t[0] - 0.37) / 0.02).powi(2))
         };
         let s = [search("x", 0.0, 1.0, false)];
-        let o = minimize_from(&s, &[0.40], f).unwrap();
+        let o = minimize_near(&s, Some(&[0.40]), f).unwrap();
         assert!((o.theta[0] - 0.37).abs() < 1e-4, "{:?}", o.theta);
         assert!((o.sd[0].unwrap() - 0.02).abs() < 1e-4, "{:?}", o.sd);
         let near = calls.swap(0, Ordering::Relaxed);
@@ -368,7 +371,7 @@ mod tests {
             "{near} evaluations from nearby, {whole} over the range"
         );
         // Where the start cannot be evaluated, the whole range is searched.
-        let o = minimize_from(&s, &[0.9], |t| {
+        let o = minimize_near(&s, Some(&[0.9]), |t| {
             (t[0] < 0.8).then(|| ((t[0] - 0.37) / 0.02).powi(2))
         })
         .unwrap();

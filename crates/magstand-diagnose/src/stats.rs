@@ -17,11 +17,11 @@ pub(crate) fn one_sided_t(x: &[f64]) -> Option<f64> {
     Some(t_sf(mean / (var / n as f64).sqrt(), (n - 1) as f64))
 }
 
-/// Batches of consecutive rows in [`long_run_variance`].
-pub(crate) const VARIANCE_BATCHES: usize = 16;
+/// Batches of consecutive rows in [`BatchMeans`].
+const VARIANCE_BATCHES: usize = 16;
 
-/// Fewest rows per batch in [`long_run_variance`]; fewer rows than two such batches give
-/// no estimate.
+/// Fewest rows per batch in [`BatchMeans`]; fewer rows than two such batches give no
+/// estimate.
 const MIN_BATCH_ROWS: usize = 32;
 
 /// The long-run variance of series of standardized residuals in time order (one per axis), by

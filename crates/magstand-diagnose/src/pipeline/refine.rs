@@ -3,7 +3,7 @@
 //! offered to the next round as a new effect.
 use crate::effects::Context;
 use crate::fit::Weights;
-use crate::optimize::{Search, minimize, minimize_from};
+use crate::optimize::{Search, minimize_near};
 
 use super::design::{Term, as_refs, chi2_of};
 
@@ -41,12 +41,8 @@ pub(crate) fn refine(ctx: &mut Context, terms: &mut [Term], weights: &Weights) {
             // another's optimum to another basin: a dead zone between two logged command
             // levels); the second only refines what the first found, the others having
             // moved by their own refinement since.
-            let found = if pass == 0 {
-                minimize(&searches, chi2)
-            } else {
-                minimize_from(&searches, &terms[k].theta, chi2)
-            };
-            if let Some(opt) = found {
+            let from = (pass > 0).then_some(terms[k].theta.as_slice());
+            if let Some(opt) = minimize_near(&searches, from, chi2) {
                 terms[k].theta = opt.theta;
                 terms[k].theta_sd = opt.sd;
             }
@@ -99,10 +95,8 @@ fn calibrate_timing_from(
         log: false,
         points: 5,
     }];
-    let chi2 = |t: &[f64]| chi2_of(ctx, &refs, t[0], weights);
-    match from {
-        Some(lead) => minimize_from(&search, &[lead], chi2),
-        None => minimize(&search, chi2),
-    }
+    minimize_near(&search, from.as_ref().map(std::slice::from_ref), |t| {
+        chi2_of(ctx, &refs, t[0], weights)
+    })
     .map_or(0.5, |o| o.theta[0])
 }
