@@ -145,6 +145,56 @@ fn unstated_constants_are_calibrated_and_a_slow_lag_is_still_named() {
     );
 }
 
+/// Regression: beside a 0.5 s current lag the independent stand's recordings (seeds 1 and 2,
+/// unstated and stated) were also called `hysteresis` and `unexplained`. Three things were
+/// missing from the lag's model: its steps began up to a sample late (each lagged column held
+/// its earlier value over the whole interval, not from where the replay put the command's
+/// change), the nominal 0.06 s spin-up nobody stated stayed in the replay beside the lag, and
+/// a field nonlinear in the current (this generator's squares the lagged total current)
+/// follows the lagged current through its curve, which the lagged law columns do not form.
+///
+/// And its model file: written with every scenario key, it was read back with every key
+/// stated, so the unstated spin-up the diagnosis had replaced came back at 0.06 s and the file
+/// predicted the disturbance 15 times worse than the diagnosis's own model (0.85 against
+/// 0.057 µT on z). The file now records which keys were stated.
+#[test]
+fn a_slow_lag_is_named_alone_and_its_model_file_predicts_it() {
+    use magstand_tests::independent::{Mode, run_case};
+    let case = suite_case("current lag 0.5 s");
+    let o = run_case(&case, Mode::Unstated, 1);
+    assert_eq!(o.verdict, ["current_lag"], "{}", o.diagnosis.summary());
+    let tau = named(&o.diagnosis, "current_lag").map(|e| e.params[0].value);
+    assert!(
+        tau.is_some_and(|t| (t - 0.5).abs() < 0.01),
+        "lag {tau:?} s, generated 0.5 s"
+    );
+    let model = o.diagnosis.model.clone().expect("a model");
+    let path = std::env::temp_dir().join(format!("magstand-slow-lag-{}.json", std::process::id()));
+    model.save(&path).unwrap();
+    let loaded = magstand_diagnose::AugmentedModel::load(&path);
+    std::fs::remove_file(&path).ok();
+    let loaded = loaded.unwrap();
+    let (rec, truth) = recording(&case, 1);
+    let error_ut = |m: &magstand_diagnose::AugmentedModel| -> [f64; 3] {
+        rmse_ut(&m.dist_column(&rec, "seen.csv").unwrap(), &truth)
+    };
+    let read_back = error_ut(&loaded);
+    assert!(
+        read_back.iter().all(|e| *e < 0.1),
+        "the model file predicts the disturbance within {read_back:?} µT"
+    );
+    // Read as a file without the record (every key stated), the nominal spin-up returns.
+    let every_key_stated = magstand_diagnose::AugmentedModel {
+        stated_keys: None,
+        ..loaded
+    };
+    let old = error_ut(&every_key_stated);
+    assert!(
+        old[2] > 4.0 * read_back[2],
+        "every key stated: {old:?} µT against {read_back:?}"
+    );
+}
+
 /// Regression: on a stand whose current follows each command at once (this generator's),
 /// the calibrated spin-up stopped at the 5 ms end of its search range. At 75 Hz a 5 ms lag
 /// leaves 7 % of every step for the first sample after it (up to 4 µT), and three of four
@@ -301,10 +351,10 @@ fn a_late_magnetometer_is_reported_with_its_timing_ambiguity_and_nothing_else() 
 /// generator's truth: the board's 90 s heating (fitted from the logged temperature through the
 /// replayed power) at 84.9 ± 0.07 s, the 0.5 s current lag at 0.493 ± 0.0006 s. An sd is now
 /// widened by the long-run variance of its residuals (batch means over the identification
-/// rows), and the truth lies within a few of them. The heating's model has the generator's
-/// form (a first-order lag of the load); the lag's does not (the generator squares the lagged
-/// total current, which a lag of the currents' field cannot form), and keeps a bias of about
-/// three of its widened sds.
+/// rows), and the truth lies within a few of them. The lag's model has the generator's form
+/// since its steps act where the commands change and the square of the lagged current is a
+/// column of its own (`a_slow_lag_is_named_alone_and_its_model_file_predicts_it`): it was
+/// three to five sds off before.
 #[test]
 fn reported_uncertainties_hold_the_generators_truth() {
     use magstand_tests::independent::{Mode, run_case};
@@ -322,5 +372,5 @@ fn reported_uncertainties_hold_the_generators_truth() {
         );
     };
     within("thermal drift", "thermal_drift", "tau_s", 90.0, 3.0);
-    within("current lag 0.5 s", "current_lag", "spinup_tau_s", 0.5, 6.0);
+    within("current lag 0.5 s", "current_lag", "spinup_tau_s", 0.5, 3.0);
 }

@@ -8,6 +8,8 @@
 //!   "format": "magstand-augmented-model", "version": 1,
 //!   "recording": "R.csv",                 // what it was fitted on
 //!   "nominal_scenario": "...",            // TOML of the nominal stand the effects modify
+//!   "stated_keys": ["motors.dead_zone"],  // optional: the keys its author wrote out (absent
+//!                                         // in older files: every key counts as stated)
 //!   "command_lead": 0.5,                  // when within a row interval a command change acts
 //!   "block_s": 2.0, "holdout_every": 3,   // the diagnosis's time blocks
 //!   "effects": [{"name": "current_lag", "theta": [0.3]}, ...],   // in order of acceptance
@@ -77,6 +79,12 @@ pub struct AugmentedModel {
     pub recording: String,
     /// TOML of the nominal scenario.
     pub nominal_scenario: String,
+    /// The keys of `nominal_scenario` its author wrote out (the rest were defaults, unknown
+    /// to the diagnosis, which may treat them otherwise: a slow current lag replaces only an
+    /// unstated spin-up). Absent in files of earlier versions, where every key counts as
+    /// stated.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub stated_keys: Option<Vec<String>>,
     /// Moment within a row interval at which a logged command change acts (0..1).
     pub command_lead: f64,
     /// Time block length of the diagnosis, s.
@@ -300,6 +308,10 @@ impl AugmentedModel {
             Scenario::from_toml_str(&self.nominal_scenario, "the model's nominal scenario")?
                 .check("the model's nominal scenario", None)?;
         let mut nominal = scenario.params().clone();
+        if let Some(keys) = &self.stated_keys {
+            // The file writes every key out: what was stated is what it records.
+            nominal = nominal.with_stated_keys(keys.iter().cloned());
+        }
         nominal.study = Default::default();
         let motors = nominal.motors.count;
         if rec.motor_count() != motors && rec.motor_count() != 1 {

@@ -22,6 +22,7 @@ fn coefficients_survive_the_file_bit_for_bit() {
         version: VERSION,
         recording: "seen.csv".into(),
         nominal_scenario: String::new(),
+        stated_keys: Some(vec!["motors.dead_zone".into()]),
         command_lead: 0.26585140122570994,
         block_s: 0.5,
         holdout_every: 3,

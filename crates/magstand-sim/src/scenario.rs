@@ -320,6 +320,19 @@ impl Scenario {
         self.stated.0.contains(key)
     }
 
+    /// The dotted keys the scenario's text wrote out, in order: what [`Scenario::states`]
+    /// answers for.
+    pub fn stated_keys(&self) -> Vec<String> {
+        self.stated.0.iter().cloned().collect()
+    }
+
+    /// The same physics with exactly `keys` stated (a scenario read back from a file that
+    /// writes every key out, with what its author had stated recorded beside it).
+    pub fn with_stated_keys(mut self, keys: impl IntoIterator<Item = String>) -> Self {
+        self.stated.0 = keys.into_iter().collect();
+        self
+    }
+
     /// The same physics with nothing stated: every constant is a default, a starting point
     /// rather than a claim about the stand (magstand's nominal stand when the user gives none).
     pub fn with_nothing_stated(mut self) -> Self {

@@ -11,6 +11,9 @@ use crate::optimize::Search;
 /// else: a filtered current, a slow ESC ramp, a supply that cannot follow.
 pub const MAX_SPINUP_S: f64 = 0.3;
 
+/// The fastest spin-up searched, s: a small motor with a light propeller.
+const FASTEST_SPINUP_S: f64 = 0.001;
+
 /// Motor current follows a command step through a first-order lag (spin-up) other than the
 /// nominal one.
 pub struct CurrentLag;
@@ -40,7 +43,7 @@ impl Effect for CurrentLag {
         vec![Search {
             name: "spinup_tau_s",
             unit: "s",
-            lo: 0.001,
+            lo: FASTEST_SPINUP_S,
             hi: 3.0,
             log: true,
             points: 15,
@@ -67,10 +70,19 @@ impl Effect for CurrentLag {
         if ctx.follow_recorded_current {
             return;
         }
-        // A lag slower than any spin-up is not the rotors': the replay keeps the stand's
-        // spin-up and the field follows the currents through the lag (`field_lag_s`).
-        if let Some(p) = SpinUp::from_slice(theta).filter(|p| p.spinup_tau_s <= MAX_SPINUP_S) {
+        // A lag slower than any spin-up is not the rotors': the replay keeps a stated spin-up
+        // and the field follows the currents through the lag (`field_lag_s`).
+        let Some(p) = SpinUp::from_slice(theta) else {
+            return;
+        };
+        if p.spinup_tau_s <= MAX_SPINUP_S {
             s.motors.spinup_tau_s = p.spinup_tau_s;
+        } else if !ctx.nominal.states("motors.spinup_tau_s") {
+            // Behind a lag this slow an unstated spin-up is not kept at the nominal value: the
+            // lag, calibrated from the data, takes up whatever spin-up the rotors have (the two
+            // in series are the slower one, a few tens of milliseconds later), where a nominal
+            // one kept beside it would add a lag the data may not have.
+            s.motors.spinup_tau_s = FASTEST_SPINUP_S;
         }
     }
     fn field_lag_s(&self, ctx: &Context, theta: &[f64]) -> Option<f64> {

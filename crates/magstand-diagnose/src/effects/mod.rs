@@ -257,19 +257,25 @@ pub fn names() -> Vec<&'static str> {
 /// (exact for a signal held between samples).
 pub(crate) fn first_order_lag(t_s: &[f64], x: &[f64], tau_s: f64) -> Vec<f64> {
     let mut y = x.to_vec();
-    lag_columns(t_s, &mut [&mut y], tau_s, false);
+    lag_columns(t_s, &mut [&mut y], tau_s, false, 0.0);
     y
 }
 
-/// Lags every column of `columns` in place as [`first_order_lag`] does, but from each
-/// column's first value (a run that starts with current flowing starts settled).
-pub(crate) fn lag_in_place(t_s: &[f64], columns: &mut [&mut [f64]], tau_s: f64) {
-    lag_columns(t_s, columns, tau_s, true);
+/// Lags every column of `columns` in place from each column's first value (a run that starts
+/// with current flowing starts settled), each column's change between two samples taking
+/// effect `lead` (0..1) of the interval before the later one: where the replay puts a logged
+/// command's change ([`Context::command_lead`]). Exact for a column that steps there, as the
+/// replay's do behind a fast spin-up; holding the earlier value over the whole interval would
+/// start every step of a lag up to a sample late, a misfit that grows with the step and
+/// stands out on a quiet sensor.
+pub(crate) fn lag_in_place(t_s: &[f64], columns: &mut [&mut [f64]], tau_s: f64, lead: f64) {
+    lag_columns(t_s, columns, tau_s, true, lead.clamp(0.0, 1.0));
 }
 
-/// The first-order lag of every column in place, each held between samples, one lag factor
-/// per row for all of them; from each column's first value when `settled`, else from zero.
-fn lag_columns(t_s: &[f64], columns: &mut [&mut [f64]], tau_s: f64, settled: bool) {
+/// The first-order lag of every column in place, one pair of lag factors per row for all of
+/// them: each column held at its earlier sample for `1 - lead` of an interval, then at its
+/// later one; from each column's first value when `settled`, else from zero.
+fn lag_columns(t_s: &[f64], columns: &mut [&mut [f64]], tau_s: f64, settled: bool, lead: f64) {
     let n = columns.iter().map(|c| c.len()).fold(t_s.len(), usize::min);
     let mut previous: Vec<f64> = columns
         .iter()
@@ -286,11 +292,23 @@ fn lag_columns(t_s: &[f64], columns: &mut [&mut [f64]], tau_s: f64, settled: boo
         }
     }
     for r in 1..n {
-        let alpha = magstand_sim::lag::lag_factor(t_s[r] - t_s[r - 1], tau_s);
-        for ((col, s), p) in columns.iter_mut().zip(&mut state).zip(&mut previous) {
-            *s += (*p - *s) * alpha;
-            *p = col[r];
-            col[r] = *s;
+        let dt = t_s[r] - t_s[r - 1];
+        if lead == 0.0 {
+            let alpha = magstand_sim::lag::lag_factor(dt, tau_s);
+            for ((col, s), p) in columns.iter_mut().zip(&mut state).zip(&mut previous) {
+                *s += (*p - *s) * alpha;
+                *p = col[r];
+                col[r] = *s;
+            }
+        } else {
+            let held = magstand_sim::lag::lag_factor((1.0 - lead) * dt, tau_s);
+            let after = magstand_sim::lag::lag_factor(lead * dt, tau_s);
+            for ((col, s), p) in columns.iter_mut().zip(&mut state).zip(&mut previous) {
+                *s += (*p - *s) * held;
+                *s += (col[r] - *s) * after;
+                *p = col[r];
+                col[r] = *s;
+            }
         }
     }
 }
@@ -350,7 +368,7 @@ mod tests {
         let x: Vec<f64> = (0..50).map(|r| if r < 20 { 3.0 } else { 7.0 }).collect();
         let y: Vec<f64> = (0..50).map(|r| (r as f64 * 0.3).sin()).collect();
         let (mut a, mut b) = (x.clone(), y.clone());
-        lag_in_place(&t_s, &mut [&mut a, &mut b], 0.1);
+        lag_in_place(&t_s, &mut [&mut a, &mut b], 0.1, 0.0);
         // From the first value, as the lag from zero of the change plus that value.
         for (lagged, raw) in [(&a, &x), (&b, &y)] {
             let change: Vec<f64> = raw.iter().map(|v| v - raw[0]).collect();
@@ -375,6 +393,36 @@ mod tests {
             (left - expected).abs() < 1e-12,
             "{left} of the step left, {expected} expected"
         );
+    }
+
+    /// Regression: the lag of the currents' field held each sample over the whole interval
+    /// after it, so every step of the lag began where the next sample was taken, not where
+    /// the replay put the command's change (`command_lead` of the interval before it). On an
+    /// independent stand with a 0.5 s current lag and a quiet sensor the misfit behind each
+    /// step was named `hysteresis`.
+    #[test]
+    fn a_lagged_step_starts_where_the_command_changed() {
+        let t_s: Vec<f64> = (0..60)
+            .map(|r| 0.0133 * r as f64 + 0.0004 * (r % 4) as f64)
+            .collect();
+        let x: Vec<f64> = (0..60).map(|r| if r < 20 { 3.0 } else { 7.0 }).collect();
+        for lead in [0.0, 0.3, 0.5, 1.0] {
+            let mut a = x.clone();
+            lag_in_place(&t_s, &mut [&mut a], 0.25, lead);
+            let switch_s = t_s[20] - lead * (t_s[20] - t_s[19]);
+            for r in 0..60 {
+                let exact = if t_s[r] <= switch_s {
+                    3.0
+                } else {
+                    7.0 - 4.0 * (-(t_s[r] - switch_s) / 0.25f64).exp()
+                };
+                assert!(
+                    (a[r] - exact).abs() < 1e-12,
+                    "lead {lead}, row {r}: {} against the exact {exact}",
+                    a[r]
+                );
+            }
+        }
     }
 
     #[test]

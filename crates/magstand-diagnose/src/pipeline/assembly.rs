@@ -168,6 +168,7 @@ fn model_file(
         version: crate::augmented_model::VERSION,
         recording: ctx.rec_origin.clone(),
         nominal_scenario: nominal.to_toml(),
+        stated_keys: Some(nominal.params().stated_keys()),
         command_lead: lead,
         block_s: ctx.split.block_s,
         holdout_every: cfg.holdout_every,

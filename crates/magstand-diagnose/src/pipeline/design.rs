@@ -138,14 +138,25 @@ pub(crate) fn build_with_lead(ctx: &Context, terms: &[(&dyn Effect, &[f64])], le
     let mut fixed = trace.extra_ut.clone();
     for (e, theta) in terms {
         if let Some(tau_s) = e.field_lag_s(ctx, theta) {
-            lag_current_field(&trace.t_s, &mut design, &mut fixed, tau_s);
+            lag_current_field(&trace.t_s, &mut design, &mut fixed, tau_s, lead);
         }
     }
-    // Every term's columns, from the baseline's current law as built.
+    // Every term's columns, from the baseline's current law as built; a term that lags the
+    // currents' field also takes the second order of a field nonlinear in the current.
     let law: Vec<(&str, &[f64])> = design.current_law_columns().collect();
+    let avionics_a = s.supply.avionics_current_a();
     let added: Vec<Vec<(String, Vec<f64>)>> = terms
         .iter()
-        .map(|(e, theta)| e.regressors(ctx, trace, &law, theta))
+        .map(|(e, theta)| {
+            let mut columns = e.regressors(ctx, trace, &law, theta);
+            if let Some(tau_s) = e.field_lag_s(ctx, theta) {
+                columns.push((
+                    "lagged_current_squared_a2".into(),
+                    square_behind_lag(trace, avionics_a, tau_s, lead),
+                ));
+            }
+            columns
+        })
         .collect();
     let mut term_columns = Vec::new();
     for columns in added {
@@ -177,15 +188,33 @@ pub(crate) fn build_with_lead(ctx: &Context, terms: &[(&dyn Effect, &[f64])], le
 
 /// Lags the field of the motor currents by `tau_s`: the baseline's current-law columns (all
 /// but the motors-off `reference` and a measured `current_a`) and the per-motor field the
-/// scenario fixes.
-fn lag_current_field(t_s: &[f64], design: &mut Design, fixed: &mut [Vec3], tau_s: f64) {
+/// scenario fixes, each change acting from `lead` of its interval as the replay's commands do.
+fn lag_current_field(t_s: &[f64], design: &mut Design, fixed: &mut [Vec3], tau_s: f64, lead: f64) {
     let mut xyz: [Vec<f64>; 3] = std::array::from_fn(|a| fixed.iter().map(|v| v[a]).collect());
     let mut columns: Vec<&mut [f64]> = design.current_law_columns_mut().collect();
     columns.extend(xyz.iter_mut().map(|c| c.as_mut_slice()));
-    crate::effects::lag_in_place(t_s, &mut columns, tau_s);
+    crate::effects::lag_in_place(t_s, &mut columns, tau_s, lead);
     for (r, v) in fixed.iter_mut().enumerate() {
         *v = Vec3::new(xyz[0][r], xyz[1][r], xyz[2][r]);
     }
+}
+
+/// Where the currents' field lags, a field that is not linear in the current (steel near the
+/// sensor, magnetised by the total current) follows the lagged current through its curve,
+/// while the lagged current-law columns give the lag of that curve. For a curve of curvature
+/// `k` the two differ by `k / 2` times this column: the square of the lagged motor current
+/// less the lag of its square, A² (zero while the current holds, largest behind each step).
+/// The current is the replay's (less the avionics' `avionics_a`), whose shape is the nominal
+/// law's: a second-order term needs no more.
+fn square_behind_lag(trace: &Trace, avionics_a: f64, tau_s: f64, lead: f64) -> Vec<f64> {
+    let mut current: Vec<f64> = trace.total_a.iter().map(|a| a - avionics_a).collect();
+    let mut square: Vec<f64> = current.iter().map(|a| a * a).collect();
+    crate::effects::lag_in_place(&trace.t_s, &mut [&mut current, &mut square], tau_s, lead);
+    current
+        .iter()
+        .zip(&square)
+        .map(|(a, sq)| a * a - sq)
+        .collect()
 }
 
 /// The terms as (effect, parameters) pairs, as [`build`] takes them.
