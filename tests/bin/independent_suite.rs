@@ -3,12 +3,37 @@
 //! `cargo run --release -p magstand-tests --bin independent-suite -- [SEEDS [LABEL]]`
 //! (default 2 seeds, every case, both modes; LABEL keeps the cases whose label contains it,
 //! and LABEL `fit` runs only the fit comparison; FIRST_SEED in the environment starts
-//! elsewhere).
+//! elsewhere). With WRITE_RECORDINGS=DIR it only writes each case's recordings there as CSV
+//! (`NN-label-seedS.csv`, the case's index in the suite), for timing the `magstand` command
+//! on them.
 use magstand_tests::SuiteArgs;
-use magstand_tests::independent::{Mode, cases, fit_accuracy, markdown, run_case};
+use magstand_tests::independent::{Mode, cases, fit_accuracy, markdown, recording, run_case};
 
 fn main() {
     let SuiteArgs { seeds, only } = SuiteArgs::from_env(2);
+    if let Some(dir) = std::env::var_os("WRITE_RECORDINGS") {
+        let dir = std::path::PathBuf::from(dir);
+        for (k, case) in cases().into_iter().enumerate() {
+            if !case.label.contains(&only) {
+                continue;
+            }
+            let slug: String = case
+                .label
+                .chars()
+                .map(|c| if c.is_ascii_alphanumeric() { c } else { '-' })
+                .collect();
+            for seed in seeds.clone() {
+                let (rec, _) = recording(&case, seed);
+                let path = dir.join(format!("{k:02}-{slug}-seed{seed}.csv"));
+                if let Err(e) = magstand_core::recording_csv::write(&rec, &path) {
+                    eprintln!("error: {}: {e}", path.display());
+                    std::process::exit(1);
+                }
+                println!("{}", path.display());
+            }
+        }
+        return;
+    }
     if only == "fit" {
         print_fit_accuracy();
         return;
