@@ -293,22 +293,16 @@ fn lag_columns(t_s: &[f64], columns: &mut [&mut [f64]], tau_s: f64, settled: boo
     }
     for r in 1..n {
         let dt = t_s[r] - t_s[r - 1];
-        if lead == 0.0 {
-            let alpha = magstand_sim::lag::lag_factor(dt, tau_s);
-            for ((col, s), p) in columns.iter_mut().zip(&mut state).zip(&mut previous) {
-                *s += (*p - *s) * alpha;
-                *p = col[r];
-                col[r] = *s;
-            }
-        } else {
-            let held = magstand_sim::lag::lag_factor((1.0 - lead) * dt, tau_s);
-            let after = magstand_sim::lag::lag_factor(lead * dt, tau_s);
-            for ((col, s), p) in columns.iter_mut().zip(&mut state).zip(&mut previous) {
-                *s += (*p - *s) * held;
+        let held = magstand_sim::lag::lag_factor((1.0 - lead) * dt, tau_s);
+        // No step after the change where it acts at the later sample (no exponential either).
+        let after = (lead > 0.0).then(|| magstand_sim::lag::lag_factor(lead * dt, tau_s));
+        for ((col, s), p) in columns.iter_mut().zip(&mut state).zip(&mut previous) {
+            *s += (*p - *s) * held;
+            if let Some(after) = after {
                 *s += (col[r] - *s) * after;
-                *p = col[r];
-                col[r] = *s;
             }
+            *p = col[r];
+            col[r] = *s;
         }
     }
 }

@@ -136,10 +136,9 @@ pub(crate) fn build_with_lead(ctx: &Context, terms: &[(&dyn Effect, &[f64])], le
     };
     let mut design = Design::baseline(trace, ctx.follow_recorded_current, ctx.speed_powers);
     let mut fixed = trace.extra_ut.clone();
-    for (e, theta) in terms {
-        if let Some(tau_s) = e.field_lag_s(ctx, theta) {
-            lag_current_field(&trace.t_s, &mut design, &mut fixed, tau_s, lead);
-        }
+    let field_lags: Vec<Option<f64>> = terms.iter().map(|(e, t)| e.field_lag_s(ctx, t)).collect();
+    for tau_s in field_lags.iter().flatten() {
+        lag_current_field(&trace.t_s, &mut design, &mut fixed, *tau_s, lead);
     }
     // Every term's columns, from the baseline's current law as built; a term that lags the
     // currents' field also takes the second order of a field nonlinear in the current.
@@ -147,9 +146,10 @@ pub(crate) fn build_with_lead(ctx: &Context, terms: &[(&dyn Effect, &[f64])], le
     let avionics_a = s.supply.avionics_current_a();
     let added: Vec<Vec<(String, Vec<f64>)>> = terms
         .iter()
-        .map(|(e, theta)| {
+        .zip(&field_lags)
+        .map(|((e, theta), field_lag)| {
             let mut columns = e.regressors(ctx, trace, &law, theta);
-            if let Some(tau_s) = e.field_lag_s(ctx, theta) {
+            if let Some(tau_s) = *field_lag {
                 columns.push((
                     "lagged_current_squared_a2".into(),
                     square_behind_lag(trace, avionics_a, tau_s, lead),
