@@ -7,6 +7,11 @@
 //! omnibus white-noise test named only the dead zone here; the delay's short transients at
 //! each step no longer moved the omnibus test once the first term was in, while the
 //! time_offset test itself gave p = 2e-33.
+//!
+//! Regression: when calibration rounds first opened an unstated diagnosis with only the
+//! unstated dead zone and spin-up, the spin-up was calibrated at the delay (0.2 s is within a
+//! spin-up's range) and `time_offset` was no longer significant after it. A late magnetometer
+//! now competes in those rounds, and where it gains most the whole catalog comes first.
 use magstand_core::{Recording, Vec3};
 mod common;
 use common::{Normal, diagnose_default};

@@ -174,6 +174,14 @@ pub trait Effect: Sync + Send {
         None
     }
 
+    /// Whether this effect's misfit can pass for a stand constant calibrated wrong (a late
+    /// magnetometer looks like a slow spin-up). Such an effect is tried beside the calibration
+    /// rounds that open an unstated diagnosis, and where it gains more than every calibration
+    /// the whole catalog is tried before any calibration is accepted.
+    fn mimics_calibration(&self) -> bool {
+        false
+    }
+
     /// Changes the replayed physics for nonlinear parameters `theta`.
     fn apply(&self, _ctx: &Context, _scenario: &mut Scenario, _theta: &[f64]) {}
 

@@ -26,6 +26,11 @@ impl Effect for TimeOffset {
         // A flight's baseline calibrates the delay (`flight.mag_delay_s`).
         !ctx.flight
     }
+    fn mimics_calibration(&self) -> bool {
+        // Every change in the field a fixed time late: a spin-up calibrated at the delay
+        // takes most of that misfit.
+        true
+    }
     fn parameters(&self) -> &'static [&'static str] {
         Delay::NAMES
     }

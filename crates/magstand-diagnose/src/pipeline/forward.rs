@@ -45,6 +45,7 @@ pub(crate) struct SearchOutcome<'e> {
 }
 
 /// A candidate's test result and, when it could be fitted, its parameters and fit.
+#[derive(Clone)]
 struct Candidate {
     result: CandidateResult,
     fitted: Option<(Vec<f64>, Vec<Option<f64>>, Fitted)>,
@@ -185,6 +186,14 @@ pub(crate) fn calibrates(effect: &dyn Effect, ctx: &Context, theta: &[f64]) -> b
         && effect.beyond_calibration(theta).is_none()
 }
 
+/// Whether `effect` fits a stand constant the scenario leaves out (a dead zone, a spin-up
+/// time): a candidate of the calibration rounds that open the search.
+fn is_unstated_constant(effect: &dyn Effect, ctx: &Context) -> bool {
+    effect
+        .stand_constant(ctx)
+        .is_some_and(|(key, _)| !ctx.nominal.states(key))
+}
+
 /// Why a significant candidate does not replicate, if it does not. A term is accepted only
 /// when
 ///
@@ -294,6 +303,8 @@ pub(crate) fn forward_search<'e>(
     let mut reports: Vec<EffectReport> = Vec::new();
     let mut stages = vec![("baseline".to_string(), base.model.fitted.residuals(y))];
     let mut current = (base.model.fitted.clone(), base.model.weights.clone());
+    let mut calibrating = true;
+    let mut unchanged: Vec<Candidate> = Vec::new();
     while terms.len() < cfg.max_terms {
         let (cur_fit, w) = &current;
         let before = cur_fit.residuals(y);
@@ -304,28 +315,48 @@ pub(crate) fn forward_search<'e>(
         // constant included): a transient effect (a delay at each step) can leave a
         // residual the omnibus test calls white after a first term, while its own test sees
         // it plainly.
-        let white = if rounds.is_empty() {
+        // (Until a term is in, the residual is the baseline's, whatever rounds have run.)
+        let white = if terms.is_empty() {
             base.white
         } else {
             whiteness(&standardized(&before, w), ctx.split)
         };
-        let structured = !rounds.is_empty() || base.structured;
-        let open: Vec<&dyn Effect> = effects
+        let structured = !terms.is_empty() || base.structured;
+        let mut open: Vec<&dyn Effect> = effects
             .iter()
             .map(|e| e.as_ref())
             .filter(|e| !terms.iter().any(|t| t.effect.name() == e.name()))
             .collect();
+        // The stand constants nobody stated are calibrated first, in rounds of their own: a
+        // calibration is part of the baseline every finding is measured against, and a round
+        // of a few candidates costs a fraction of the catalog's. The effects whose misfit can
+        // pass for a calibration are tried beside them. Once no calibration is accepted, the
+        // whole catalog is tried.
+        let calibration_round = calibrating
+            && open
+                .iter()
+                .any(|e| is_unstated_constant(*e, ctx) && e.applies(ctx));
+        if calibration_round {
+            open.retain(|e| is_unstated_constant(*e, ctx) || e.mimics_calibration());
+        }
         let shared: &Context = ctx;
+        // A calibration round that accepted nothing left the model as it was: its
+        // candidates' fits hold for the catalog's round after it.
         let mut tried: Vec<Candidate> = open
             .par_iter()
             .map(|e| {
-                if e.applies(shared) {
+                if let Some(c) = unchanged.iter().find(|c| c.result.name == e.name()) {
+                    let mut c = c.clone();
+                    c.result.note = None;
+                    c
+                } else if e.applies(shared) {
                     try_candidate(shared, &terms, *e, w, &before)
                 } else {
                     Candidate::not_fitted(*e, "does not apply to this recording")
                 }
             })
             .collect();
+        unchanged.clear();
         for (c, e) in tried.iter_mut().zip(&open) {
             refuse_within_stated(c, *e, shared);
         }
@@ -346,8 +377,23 @@ pub(crate) fn forward_search<'e>(
         // The most significant gain that replicates is accepted; each one before it that does
         // not says why in its round.
         let mut best = None;
-        for i in significant {
-            let fitted = &tried[i].fitted.as_ref().expect("a p-value means fitted").2;
+        for (rank, i) in significant.into_iter().enumerate() {
+            let (theta, _, fitted) = tried[i].fitted.as_ref().expect("a p-value means fitted");
+            if calibration_round && !calibrates(open[i], shared, theta) {
+                // A finding (a lag slower than any spin-up, a late magnetometer) is not a
+                // calibration: it competes with the whole catalog, where another effect may
+                // explain the same misfit (a late magnetometer looks like a lag). Where it
+                // gains most, the misfit it takes is the largest, and the catalog's round
+                // comes before any calibration (a calibration fitted beside that misfit lands
+                // elsewhere: a spin-up calibrated at a 0.2 s delay).
+                tried[i].result.note = Some(
+                    "left to the catalog's round: at these parameters it is a finding, not the calibration of a stand constant".into(),
+                );
+                if rank == 0 {
+                    break;
+                }
+                continue;
+            }
             let change = prediction_change(&fitted.pred, &cur_fit.pred, w);
             let located = locate(rows, &change, &all_rows, Signal::Change, cfg.significance);
             match replication_failure(shared, open[i], &tried[i], &before, w, &located, cfg) {
@@ -366,8 +412,15 @@ pub(crate) fn forward_search<'e>(
         };
         let Some((i, located)) = best else {
             rounds.push(round);
+            if calibration_round {
+                calibrating = false;
+                unchanged = tried;
+                continue;
+            }
             break;
         };
+        // After a finding, the constants still open are calibrated again first.
+        calibrating = true;
         let (theta, theta_sd, fitted) = tried[i].fitted.clone().expect("accepted means fitted");
         let after = fitted.residuals(y);
         reports.push(EffectReport {
