@@ -358,6 +358,10 @@ impl AugmentedModel {
                 .iter()
                 .filter(|c| c.starts_with("speed^"))
                 .count(),
+            armed_current: self
+                .columns
+                .iter()
+                .any(|c| c == crate::fit::ARMED_IN_DEAD_ZONE),
             replays: Default::default(),
         };
         // Each effect's parameters as its own search defines them: as many as it searches,

@@ -34,7 +34,17 @@ impl Design {
     /// the nominal stand treats all motors alike. With `measured_current`, the trace's supply
     /// current is a measured one (a flight's `bat_a`), which the commands' speeds only
     /// approximate: the field linear in it is a column of its own.
-    pub fn baseline(trace: &Trace, measured_current: bool, speed_powers: usize) -> Design {
+    ///
+    /// With `armed_current`, the motors commanded within their dead zone (armed, not driven)
+    /// are a column of their own, [`ARMED_IN_DEAD_ZONE`]: an ESC that holds its motor at idle
+    /// there draws current the nominal motor does not, and a stand constant calibrated or
+    /// tested without it would take the dead zone to the lowest logged command instead.
+    pub fn baseline(
+        trace: &Trace,
+        measured_current: bool,
+        speed_powers: usize,
+        armed_current: bool,
+    ) -> Design {
         let n = trace.len();
         let k_max = speed_powers.min(MAX_SPEED_POWERS);
         let mut d = Design::default();
@@ -63,7 +73,18 @@ impl Design {
                 }
             }
         }
-        d.push("driven", driven);
+        if armed_current {
+            let mut in_dead_zone = vec![0.0; n];
+            for (armed, on) in trace.armed.iter().zip(&trace.driven) {
+                for (c, (&a, &d)) in in_dead_zone.iter_mut().zip(armed.iter().zip(on)) {
+                    *c += a - d;
+                }
+            }
+            d.push("driven", driven);
+            d.push(ARMED_IN_DEAD_ZONE, in_dead_zone);
+        } else {
+            d.push("driven", driven);
+        }
         for (k, column) in powers.into_iter().enumerate() {
             d.push(format!("speed^{}", k + 1), column);
         }
@@ -102,6 +123,28 @@ impl Design {
     pub fn len(&self) -> usize {
         self.columns.len()
     }
+}
+
+/// The baseline column counting the motors commanded within their dead zone (see
+/// [`Design::baseline`]). Where no identification row has such a motor it is all zeros and
+/// [`fit`] gives it no coefficient: the data say nothing of that current. So does a term's
+/// column made from it (its name ends in this one's).
+pub(crate) const ARMED_IN_DEAD_ZONE: &str = "armed_in_dead_zone";
+
+/// Whether the number of motors commanded above zero differs between rows of `thr` (one
+/// column per motor, or one for all): where it does not, the motors armed within their dead
+/// zone are the motors-off reference less the driven ones, and [`ARMED_IN_DEAD_ZONE`] would
+/// repeat two columns.
+pub(crate) fn arming_varies(thr: &[Vec<f64>]) -> bool {
+    let armed = |r: usize| thr.iter().filter(|c| c[r] > 0.0).count();
+    let rows = thr.first().map_or(0, Vec::len);
+    (1..rows).any(|r| armed(r) != armed(0))
+}
+
+/// Whether a design column may take no part in a fit: [`ARMED_IN_DEAD_ZONE`] and a term's
+/// columns made from it, which vanish where no motor is armed within its dead zone.
+fn may_vanish(name: &str) -> bool {
+    name.ends_with(ARMED_IN_DEAD_ZONE)
 }
 
 /// Whether a baseline column is one of its current law's (not the motors-off `reference` or a
@@ -211,8 +254,43 @@ pub(crate) fn fit(
     weights: &Weights,
     holdout: &[bool],
 ) -> Result<Fitted, SolveError> {
-    let p = design.len();
+    // A column that may vanish and does on every identification row takes no part.
+    let active: Vec<usize> = (0..design.len())
+        .filter(|&j| {
+            !may_vanish(&design.names[j])
+                || design.columns[j]
+                    .iter()
+                    .zip(holdout)
+                    .any(|(&v, &h)| !h && v != 0.0)
+        })
+        .collect();
+    match fit_columns(design, &active, y, fixed, weights, holdout) {
+        // Nor does one the others determine (motors armed within the dead zone on rows that
+        // the other columns already tell apart).
+        Err(SolveError::Singular { .. })
+            if active.iter().any(|&j| may_vanish(&design.names[j])) =>
+        {
+            let kept: Vec<usize> = active
+                .into_iter()
+                .filter(|&j| !may_vanish(&design.names[j]))
+                .collect();
+            fit_columns(design, &kept, y, fixed, weights, holdout)
+        }
+        other => other,
+    }
+}
+
+/// [`fit`] with only the columns `active` of `design` (the others' coefficients 0).
+fn fit_columns(
+    design: &Design,
+    active: &[usize],
+    y: &[Vec3],
+    fixed: Option<&[Vec3]>,
+    weights: &Weights,
+    holdout: &[bool],
+) -> Result<Fitted, SolveError> {
     let n = y.len();
+    let p = active.len();
     let target = |r: usize| match fixed {
         Some(f) => y[r] - f[r],
         None => y[r],
@@ -222,8 +300,8 @@ pub(crate) fn fit(
         let mut ne = SharedRowEquations::<3>::new(p);
         let mut x = vec![0.0; p];
         for r in rows.filter(|&r| !holdout[r]) {
-            for (xj, col) in x.iter_mut().zip(&design.columns) {
-                *xj = col[r];
+            for (xj, &j) in x.iter_mut().zip(active) {
+                *xj = design.columns[j][r];
             }
             let t = target(r);
             ne.add(&x, [t.x, t.y, t.z], weights.0[r]);
@@ -240,14 +318,14 @@ pub(crate) fn fit(
     };
     ne.merge(&second);
     let ne = ne.into_equations();
-    let mut coef = vec![[0.0; 3]; p];
-    let mut coef_sd = vec![[0.0; 3]; p];
+    let mut coef = vec![[0.0; 3]; design.len()];
+    let mut coef_sd = vec![[0.0; 3]; design.len()];
     for a in 0..3 {
         let theta = ne[a].solve()?;
         let var = ne[a].coefficient_variances()?;
-        for j in 0..p {
-            coef[j][a] = theta[(j, 0)];
-            coef_sd[j][a] = var[j].max(0.0).sqrt();
+        for (k, &j) in active.iter().enumerate() {
+            coef[j][a] = theta[(k, 0)];
+            coef_sd[j][a] = var[k].max(0.0).sqrt();
         }
     }
     let mut pred = design.predict(&coef);
@@ -404,13 +482,14 @@ mod tests {
             t_s: (0..n).map(|r| r as f64).collect(),
             speed: vec![speed.clone(), speed.clone()],
             driven: vec![driven.clone(), driven.clone()],
+            armed: vec![vec![1.0; n]; 2],
             current_a: vec![vec![0.0; n]; 2],
             total_a: vec![0.0; n],
             voltage_v: vec![0.0; n],
             modules: Vec::new(),
             extra_ut: vec![Vec3::zeros(); n],
         };
-        let d5 = Design::baseline(&trace, false, 5);
+        let d5 = Design::baseline(&trace, false, 5, false);
         assert_eq!(
             d5.names,
             [
@@ -440,7 +519,7 @@ mod tests {
             }
             assert!((d5.columns[6][r] - 2.0 * on * s.powi(5)).abs() < 1e-15);
         }
-        let d3 = Design::baseline(&trace, true, 3);
+        let d3 = Design::baseline(&trace, true, 3, false);
         assert_eq!(
             d3.names,
             [
@@ -482,5 +561,65 @@ mod tests {
             (at[0] - 0.2).abs() < 1e-9 && (at[1] - 0.2).abs() < 1e-9,
             "{at:?}"
         );
+    }
+
+    /// The motors armed within their dead zone are a column that may take no part: where it
+    /// is zero on every identification row, or repeats the others, the fit is the one without
+    /// it (the same bits) and its coefficient 0; where it is determined, it is fitted.
+    #[test]
+    fn the_armed_motors_column_takes_part_only_where_the_data_determine_it() {
+        let n = 300;
+        let hold: Vec<bool> = (0..n).map(|k| k % 3 == 2).collect();
+        let w = Weights(vec![[1.0; 3]; n]);
+        let x: Vec<f64> = (0..n).map(|k| (k % 7) as f64 / 7.0).collect();
+        let y: Vec<Vec3> = x
+            .iter()
+            .map(|&x| Vec3::new(1.0 + 2.0 * x, -x, 0.25 * x))
+            .collect();
+        let mut plain = Design::default();
+        plain.push("reference", vec![1.0; n]);
+        plain.push("x", x.clone());
+        let without = fit(&plain, &y, None, &w, &hold).unwrap();
+        let with = |column: Vec<f64>| {
+            let mut d = plain.clone();
+            d.push(ARMED_IN_DEAD_ZONE, column);
+            fit(&d, &y, None, &w, &hold).unwrap()
+        };
+        // Nonzero on held-out rows only, then equal to the reference.
+        let held_only: Vec<f64> = hold.iter().map(|&h| if h { 1.0 } else { 0.0 }).collect();
+        for (what, f) in [
+            ("held out only", with(held_only)),
+            ("repeated", with(vec![1.0; n])),
+        ] {
+            assert_eq!(f.coef[..2], without.coef[..], "{what}");
+            assert_eq!(f.coef[2], [0.0; 3], "{what}");
+            assert_eq!(f.chi2_fit.to_bits(), without.chi2_fit.to_bits(), "{what}");
+        }
+        // Determined: motors armed on every fifth row add 0.5, -0.1, 0.3.
+        let armed: Vec<f64> = (0..n).map(|k| if k % 5 == 0 { 1.0 } else { 0.0 }).collect();
+        let y2: Vec<Vec3> = y
+            .iter()
+            .zip(&armed)
+            .map(|(v, a)| v + Vec3::new(0.5, -0.1, 0.3) * *a)
+            .collect();
+        let mut d = plain.clone();
+        d.push(ARMED_IN_DEAD_ZONE, armed);
+        let f = fit(&d, &y2, None, &w, &hold).unwrap();
+        for (a, want) in [0.5, -0.1, 0.3].into_iter().enumerate() {
+            assert!(
+                (f.coef[2][a] - want).abs() < 1e-9,
+                "axis {a}: {:?}",
+                f.coef[2]
+            );
+        }
+    }
+
+    #[test]
+    fn arming_varies_only_where_the_number_of_commanded_motors_does() {
+        let always = vec![vec![0.5, 0.2, 0.9], vec![0.1, 0.3, 0.4]];
+        assert!(!arming_varies(&always), "{always:?}");
+        let off_once = vec![vec![0.5, 0.0, 0.9], vec![0.1, 0.3, 0.4]];
+        assert!(arming_varies(&off_once), "{off_once:?}");
+        assert!(!arming_varies(&[]), "no columns");
     }
 }

@@ -123,6 +123,10 @@ pub struct Trace {
     /// Per motor, per row: 1 while the ESC drives the motor (command above the dead zone),
     /// else 0.
     pub driven: Vec<Vec<f64>>,
+    /// Per motor, per row: 1 while the motor is commanded above zero (armed), within its dead
+    /// zone or above it, else 0. An ESC that holds its motor at idle through the dead zone
+    /// draws current there, which this stand's motor model does not.
+    pub armed: Vec<Vec<f64>>,
     /// Per motor, per row: current, A.
     pub current_a: Vec<Vec<f64>>,
     /// Supply current including the avionics, A.
@@ -225,6 +229,7 @@ pub fn replay_logged(
         t_s: t_s.to_vec(),
         speed: vec![Vec::with_capacity(rows); n_motors],
         driven: vec![Vec::with_capacity(rows); n_motors],
+        armed: vec![Vec::with_capacity(rows); n_motors],
         current_a: vec![Vec::with_capacity(rows); n_motors],
         total_a: Vec::with_capacity(rows),
         voltage_v: Vec::with_capacity(rows),
@@ -320,11 +325,9 @@ pub fn replay_logged(
         }
         for (m, st) in motors.iter().enumerate() {
             tr.speed[m].push(st.speed_rad_s / full_speed);
-            tr.driven[m].push(if p.motors.duty(command(m, acting[m])) > 0.0 {
-                1.0
-            } else {
-                0.0
-            });
+            let c = command(m, acting[m]);
+            tr.driven[m].push(if p.motors.duty(c) > 0.0 { 1.0 } else { 0.0 });
+            tr.armed[m].push(if c > 0.0 { 1.0 } else { 0.0 });
             tr.current_a[m].push(st.current_a);
             if let Some(g) = gains.get(m) {
                 extra += g * st.current_a;
@@ -378,6 +381,7 @@ impl Trace {
             t_s: self.t_s.clone(),
             speed: self.speed.iter().map(shift).collect(),
             driven: self.driven.iter().map(shift).collect(),
+            armed: self.armed.iter().map(shift).collect(),
             current_a: self.current_a.iter().map(shift).collect(),
             total_a: shift(&self.total_a),
             voltage_v: shift(&self.voltage_v),
@@ -486,6 +490,42 @@ mod tests {
             far(&measured),
             far(&tr.total_a)
         );
+    }
+
+    /// A motor commanded within its dead zone is armed but not driven; the stair's first step
+    /// (0.25) lies within the default dead zone (0.37), its others above it. (Each row's
+    /// command acts from halfway through the interval before it, so at the row it is the one
+    /// acting.)
+    #[test]
+    fn armed_is_any_command_above_zero_and_driven_only_above_the_dead_zone() {
+        let (rec, _) = stair_and_replay();
+        let s = Scenario::from_toml_str(STAIR, "t")
+            .unwrap()
+            .check("t", None)
+            .unwrap();
+        let tr = replay(s.params(), &rec.t_s, &rec.thr, None, 0.5);
+        let mut within = 0;
+        for r in 0..rec.len() {
+            for m in 0..tr.armed.len() {
+                let c = rec.thr[if rec.thr.len() == 1 { 0 } else { m }][r];
+                let (armed, driven) = (tr.armed[m][r], tr.driven[m][r]);
+                assert_eq!(
+                    armed,
+                    f64::from(u8::from(c > 0.0)),
+                    "row {r} motor {m}: {c}"
+                );
+                assert!(
+                    driven <= armed,
+                    "row {r} motor {m}: driven {driven}, armed {armed}"
+                );
+                if armed == 1.0 && driven == 0.0 {
+                    within += 1;
+                    assert!(c <= 0.37, "row {r} motor {m}: command {c} not driven");
+                    assert_eq!(tr.current_a[m][r], 0.0, "row {r} motor {m}");
+                }
+            }
+        }
+        assert!(within > 0, "no row within the dead zone");
     }
 
     #[test]

@@ -84,6 +84,9 @@ pub struct Context<'a> {
     pub follow_recorded_current: bool,
     /// Powers of speed in the baseline's current law (see `current_law_powers`).
     pub speed_powers: usize,
+    /// Whether the baseline counts the motors commanded within their dead zone as a column
+    /// of its own (see `Design::baseline`); a model file written before that column has none.
+    pub armed_current: bool,
     /// Replays already made of this recording, reused by the searches.
     pub(crate) replays: crate::pipeline::design::ReplayCache,
 }
@@ -353,6 +356,7 @@ impl TestStand {
             follow_recorded_voltage: false,
             follow_recorded_current: false,
             speed_powers: crate::fit::MIN_SPEED_POWERS,
+            armed_current: true,
             replays: Default::default(),
         }
     }

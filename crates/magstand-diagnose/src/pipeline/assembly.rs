@@ -273,7 +273,12 @@ fn simulation_rmse(
         logged,
         ctx.command_lead,
     );
-    let design = Design::baseline(&tr, ctx.follow_recorded_current, ctx.speed_powers);
+    let design = Design::baseline(
+        &tr,
+        ctx.follow_recorded_current,
+        ctx.speed_powers,
+        ctx.armed_current,
+    );
     let f = fit(
         &design,
         &rec.mag_ut,

@@ -134,7 +134,12 @@ pub(crate) fn build_with_lead(ctx: &Context, terms: &[(&dyn Effect, &[f64])], le
     } else {
         &undelayed
     };
-    let mut design = Design::baseline(trace, ctx.follow_recorded_current, ctx.speed_powers);
+    let mut design = Design::baseline(
+        trace,
+        ctx.follow_recorded_current,
+        ctx.speed_powers,
+        ctx.armed_current,
+    );
     let mut fixed = trace.extra_ut.clone();
     let field_lags: Vec<Option<f64>> = terms.iter().map(|(e, t)| e.field_lag_s(ctx, t)).collect();
     for tau_s in field_lags.iter().flatten() {

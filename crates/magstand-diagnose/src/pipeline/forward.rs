@@ -263,6 +263,11 @@ fn replication_failure(
             ));
         }
     }
+    if located.axes.is_empty() {
+        return Some(
+            "refused: the prediction it changes is not significantly changed on any axis, so there is no place its gain comes from".into(),
+        );
+    }
     let (rmse_before, rmse_after) = (
         holdout_rmse(before, &ctx.split.holdout),
         holdout_rmse(&after, &ctx.split.holdout),

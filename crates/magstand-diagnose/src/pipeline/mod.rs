@@ -88,6 +88,9 @@ pub(crate) fn diagnose_with(
         follow_recorded_voltage: follow_recorded_voltage && rec.bat_v.is_some(),
         follow_recorded_current,
         speed_powers: crate::fit::current_law_powers(&rec.thr),
+        // A flight's motors are armed on every row it keeps: the column would repeat the
+        // motors-off reference less the driven motors.
+        armed_current: flight.is_none() && crate::fit::arming_varies(&rec.thr),
         replays: Default::default(),
     };
     let base = calibrate_baseline(&mut ctx, cfg)?;
