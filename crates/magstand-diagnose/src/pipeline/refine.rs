@@ -25,7 +25,19 @@ pub(crate) fn refine(ctx: &mut Context, terms: &mut [Term], weights: &Weights) {
         *last = Some(objective_key(ctx, terms, terms.len() - 1));
     }
     let mut timed_at = None;
-    for pass in 0..REFINE_PASSES {
+    let mut last_start: Option<Vec<f64>> = None;
+    for pass in 0..REFINE_PASSES + 1 {
+        if pass == REFINE_PASSES {
+            // One more pass only where the pattern step below moved the parameters.
+            let stepped = last_start
+                .as_deref()
+                .is_some_and(|start| pattern_step(ctx, terms, weights, start));
+            if !stepped {
+                break;
+            }
+        } else if pass == REFINE_PASSES - 1 {
+            last_start = Some(point(ctx, terms));
+        }
         for k in 0..terms.len() {
             let searches = terms[k].effect.search(ctx);
             let key = objective_key(ctx, terms, k);
@@ -56,6 +68,88 @@ pub(crate) fn refine(ctx: &mut Context, terms: &mut [Term], weights: &Weights) {
             timed_at = Some(key);
         }
     }
+}
+
+/// Every term's parameters and the command lead, in that order.
+fn point(ctx: &Context, terms: &[Term]) -> Vec<f64> {
+    terms
+        .iter()
+        .flat_map(|t| t.theta.iter().copied())
+        .chain(std::iter::once(ctx.command_lead))
+        .collect()
+}
+
+/// Most pattern steps in a row.
+const PATTERN_STEPS: usize = 3;
+
+/// A pattern step (Hooke and Jeeves) after the coordinate passes: where the last pass moved
+/// the parameters from `start`, the same move is tried again from where it ended, and again
+/// while the chi-square falls. Two parameters that trade off (a slow lag's time constant and
+/// where within an interval commands act) form a narrow valley that a search of one at a time
+/// crosses in ever smaller steps and leaves early. Returns whether a step was taken; the
+/// parameters then stand at the last one, within their search ranges.
+fn pattern_step(ctx: &mut Context, terms: &mut [Term], weights: &Weights, start: &[f64]) -> bool {
+    let end = point(ctx, terms);
+    let step: Vec<f64> = end.iter().zip(start).map(|(e, s)| e - s).collect();
+    if step.iter().all(|d| *d == 0.0) {
+        return false;
+    }
+    let ranges: Vec<(f64, f64)> = terms
+        .iter()
+        .flat_map(|t| t.effect.search(ctx).into_iter().map(|s| (s.lo, s.hi)))
+        .chain(std::iter::once((0.0, 1.0)))
+        .collect();
+    if ranges.len() != end.len() {
+        return false;
+    }
+    let chi2_at = |ctx: &Context, x: &[f64]| {
+        let mut at = 0;
+        let thetas: Vec<&[f64]> = terms
+            .iter()
+            .map(|t| {
+                let v = &x[at..at + t.theta.len()];
+                at += t.theta.len();
+                v
+            })
+            .collect();
+        let refs: Vec<_> = terms
+            .iter()
+            .zip(thetas)
+            .map(|(t, theta)| (t.effect, theta))
+            .collect();
+        chi2_of(ctx, &refs, x[x.len() - 1], weights)
+    };
+    let Some(mut best) = chi2_at(ctx, &end) else {
+        return false;
+    };
+    let mut at = end;
+    let mut moved = false;
+    for _ in 0..PATTERN_STEPS {
+        let next: Vec<f64> = at
+            .iter()
+            .zip(&step)
+            .zip(&ranges)
+            .map(|((x, d), (lo, hi))| (x + d).clamp(*lo, *hi))
+            .collect();
+        match chi2_at(ctx, &next) {
+            Some(v) if v < best => {
+                best = v;
+                at = next;
+                moved = true;
+            }
+            _ => break,
+        }
+    }
+    if moved {
+        let mut k = 0;
+        for t in terms.iter_mut() {
+            let n = t.theta.len();
+            t.theta.copy_from_slice(&at[k..k + n]);
+            k += n;
+        }
+        ctx.command_lead = at[k];
+    }
+    moved
 }
 
 /// The index [`objective_key`] takes for the command lead's search.
