@@ -79,12 +79,17 @@ fn point(ctx: &Context, terms: &[Term]) -> Vec<f64> {
         .collect()
 }
 
+/// The least fall of the chi-square for which a pattern step is taken (one unit: an
+/// uncertainty's worth of one parameter).
+const MEANINGFUL_CHI2_FALL: f64 = 1.0;
+
 /// Most pattern steps in a row.
 const PATTERN_STEPS: usize = 3;
 
 /// A pattern step (Hooke and Jeeves) after the coordinate passes: where the last pass moved
 /// the parameters from `start`, the same move is tried again from where it ended, and again
-/// while the chi-square falls. Two parameters that trade off (a slow lag's time constant and
+/// while the chi-square falls, where it falls by at least [`MEANINGFUL_CHI2_FALL`] in all.
+/// Two parameters that trade off (a slow lag's time constant and
 /// where within an interval commands act) form a narrow valley that a search of one at a time
 /// crosses in ever smaller steps and leaves early. Returns whether a step was taken; the
 /// parameters then stand at the last one, within their search ranges.
@@ -119,9 +124,10 @@ fn pattern_step(ctx: &mut Context, terms: &mut [Term], weights: &Weights, start:
             .collect();
         chi2_of(ctx, &refs, x[x.len() - 1], weights)
     };
-    let Some(mut best) = chi2_at(ctx, &end) else {
+    let Some(start_chi2) = chi2_at(ctx, &end) else {
         return false;
     };
+    let mut best = start_chi2;
     let mut at = end;
     let mut moved = false;
     for _ in 0..PATTERN_STEPS {
@@ -140,6 +146,9 @@ fn pattern_step(ctx: &mut Context, terms: &mut [Term], weights: &Weights, start:
             _ => break,
         }
     }
+    // A fall of the chi-square under 1 is within what one parameter's noise moves it: not
+    // worth the pass of every search after it.
+    let moved = moved && start_chi2 - best >= MEANINGFUL_CHI2_FALL;
     if moved {
         let mut k = 0;
         for t in terms.iter_mut() {
