@@ -32,6 +32,15 @@ fn named<'d>(
     d.effects.iter().find(|e| e.name == name)
 }
 
+/// Parameter `param` of the effect `effect`, if that effect was named.
+fn named_param<'d>(
+    d: &'d magstand_diagnose::Diagnosis,
+    effect: &str,
+    param: &str,
+) -> Option<&'d magstand_diagnose::Param> {
+    named(d, effect).and_then(|e| e.params.iter().find(|p| p.name == param))
+}
+
 #[test]
 fn the_generator_depends_on_no_magstand_crate() {
     let manifest =
@@ -360,9 +369,7 @@ fn a_dead_zone_stated_too_low_is_named_with_the_armed_motors_current() {
     use magstand_tests::independent::{Mode, run_case};
     let o = run_case(&suite_case("dead zone 0.25 (stated 0.12)"), Mode::Stated, 1);
     assert_eq!(o.verdict, ["dead_zone"], "{}", o.diagnosis.summary());
-    let p = named(&o.diagnosis, "dead_zone")
-        .and_then(|e| e.params.iter().find(|p| p.name == "dead_zone"))
-        .expect("the fitted dead zone");
+    let p = named_param(&o.diagnosis, "dead_zone", "dead_zone").expect("the fitted dead zone");
     // Seed 1 logs commands at 0.2351 and 0.2569 and none between: the data place the dead
     // zone within about that interval.
     assert!(
@@ -388,8 +395,7 @@ fn reported_uncertainties_hold_the_generators_truth() {
     use magstand_tests::independent::{Mode, run_case};
     let within = |case: &str, effect: &str, param: &str, truth: f64, sds: f64| {
         let o = run_case(&suite_case(case), Mode::Unstated, 1);
-        let p = named(&o.diagnosis, effect)
-            .and_then(|e| e.params.iter().find(|p| p.name == param))
+        let p = named_param(&o.diagnosis, effect, param)
             .unwrap_or_else(|| panic!("{case}: no {effect}.{param} in {:?}", o.verdict));
         let sd = p.sd.unwrap_or_else(|| panic!("{case}: {param} has no sd"));
         assert!(
@@ -402,9 +408,7 @@ fn reported_uncertainties_hold_the_generators_truth() {
     within("thermal drift", "thermal_drift", "tau_s", 90.0, 3.0);
     // The lag itself is within 1 % of the truth; its sd is the known gap below.
     let o = run_case(&suite_case("current lag 0.5 s"), Mode::Unstated, 1);
-    let lag = named(&o.diagnosis, "current_lag")
-        .and_then(|e| e.params.iter().find(|p| p.name == "spinup_tau_s"))
-        .map(|p| p.value);
+    let lag = named_param(&o.diagnosis, "current_lag", "spinup_tau_s").map(|p| p.value);
     assert!(
         lag.is_some_and(|v| (v - 0.5).abs() < 0.005),
         "lag {lag:?} s, generated 0.5 s"
@@ -423,9 +427,7 @@ fn reported_uncertainties_hold_the_generators_truth() {
 fn a_slow_lags_reported_uncertainty_holds_the_generators_truth() {
     use magstand_tests::independent::{Mode, run_case};
     let o = run_case(&suite_case("current lag 0.5 s"), Mode::Unstated, 1);
-    let p = named(&o.diagnosis, "current_lag")
-        .and_then(|e| e.params.iter().find(|p| p.name == "spinup_tau_s"))
-        .expect("the lag");
+    let p = named_param(&o.diagnosis, "current_lag", "spinup_tau_s").expect("the lag");
     let sd = p.sd.expect("an sd");
     assert!(
         (p.value - 0.5).abs() < 3.0 * sd,
@@ -498,9 +500,7 @@ fn a_stated_stands_slow_lag_is_followed_along_its_valley_with_the_command_lead()
     use magstand_tests::independent::{Mode, run_case};
     let o = run_case(&suite_case("current lag 0.5 s"), Mode::Stated, 2);
     assert_eq!(o.verdict, ["current_lag"], "{}", o.diagnosis.summary());
-    let p = named(&o.diagnosis, "current_lag")
-        .and_then(|e| e.params.iter().find(|p| p.name == "spinup_tau_s"))
-        .expect("the lag");
+    let p = named_param(&o.diagnosis, "current_lag", "spinup_tau_s").expect("the lag");
     // Within 1 % (its sd is the known gap of `a_slow_lags_reported_uncertainty_holds_...`).
     assert!(
         (p.value - 0.5).abs() < 0.005,
