@@ -73,6 +73,7 @@ impl Design {
                 }
             }
         }
+        d.push("driven", driven);
         if armed_current {
             let mut in_dead_zone = vec![0.0; n];
             for (armed, on) in trace.armed.iter().zip(&trace.driven) {
@@ -80,10 +81,7 @@ impl Design {
                     *c += a - d;
                 }
             }
-            d.push("driven", driven);
             d.push(ARMED_IN_DEAD_ZONE, in_dead_zone);
-        } else {
-            d.push("driven", driven);
         }
         for (k, column) in powers.into_iter().enumerate() {
             d.push(format!("speed^{}", k + 1), column);

@@ -426,12 +426,16 @@ mod tests {
         record_power = true
     "#;
 
-    /// The stair simulated (seed 3) and its commands replayed.
-    fn stair_and_replay() -> (magstand_core::Recording, Trace) {
-        let s = Scenario::from_toml_str(STAIR, "t")
+    fn stair() -> crate::ValidScenario {
+        Scenario::from_toml_str(STAIR, "t")
             .unwrap()
             .check("t", None)
-            .unwrap();
+            .unwrap()
+    }
+
+    /// The stair simulated (seed 3) and its commands replayed.
+    fn stair_and_replay() -> (magstand_core::Recording, Trace) {
+        let s = stair();
         let rec = simulate(&s, 3);
         let tr = replay(s.params(), &rec.t_s, &rec.thr, None, 0.0);
         (rec, tr)
@@ -455,10 +459,7 @@ mod tests {
     #[test]
     fn a_logged_current_is_what_the_modules_see_and_the_motors_are_not() {
         let (rec, tr) = stair_and_replay();
-        let s = Scenario::from_toml_str(STAIR, "t")
-            .unwrap()
-            .check("t", None)
-            .unwrap();
+        let s = stair();
         let p = s.params();
         // A measured current unlike the model's: a third higher, with a 2 A ripple.
         let measured: Vec<f64> = (0..rec.len())
@@ -499,11 +500,7 @@ mod tests {
     #[test]
     fn armed_is_any_command_above_zero_and_driven_only_above_the_dead_zone() {
         let (rec, _) = stair_and_replay();
-        let s = Scenario::from_toml_str(STAIR, "t")
-            .unwrap()
-            .check("t", None)
-            .unwrap();
-        let tr = replay(s.params(), &rec.t_s, &rec.thr, None, 0.5);
+        let tr = replay(stair().params(), &rec.t_s, &rec.thr, None, 0.5);
         let mut within = 0;
         for r in 0..rec.len() {
             for m in 0..tr.armed.len() {

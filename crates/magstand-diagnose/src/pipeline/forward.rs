@@ -180,10 +180,7 @@ fn prediction_change(new: &[Vec3], old: &[Vec3], w: &Weights) -> Vec<Vec3> {
 /// The effect's own [`Effect::beyond_calibration`] names the exception (a lag slower than any
 /// spin-up).
 pub(crate) fn calibrates(effect: &dyn Effect, ctx: &Context, theta: &[f64]) -> bool {
-    effect
-        .stand_constant(ctx)
-        .is_some_and(|(key, _)| !ctx.nominal.states(key))
-        && effect.beyond_calibration(theta).is_none()
+    is_unstated_constant(effect, ctx) && effect.beyond_calibration(theta).is_none()
 }
 
 /// Whether `effect` fits a stand constant the scenario leaves out (a dead zone, a spin-up

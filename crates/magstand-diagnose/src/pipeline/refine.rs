@@ -108,18 +108,9 @@ fn pattern_step(ctx: &mut Context, terms: &mut [Term], weights: &Weights, start:
         return false;
     }
     let chi2_at = |ctx: &Context, x: &[f64]| {
-        let mut at = 0;
-        let thetas: Vec<&[f64]> = terms
-            .iter()
-            .map(|t| {
-                let v = &x[at..at + t.theta.len()];
-                at += t.theta.len();
-                v
-            })
-            .collect();
         let refs: Vec<_> = terms
             .iter()
-            .zip(thetas)
+            .zip(thetas_of(terms, x))
             .map(|(t, theta)| (t.effect, theta))
             .collect();
         chi2_of(ctx, &refs, x[x.len() - 1], weights)
@@ -129,7 +120,6 @@ fn pattern_step(ctx: &mut Context, terms: &mut [Term], weights: &Weights, start:
     };
     let mut best = start_chi2;
     let mut at = end;
-    let mut moved = false;
     for _ in 0..PATTERN_STEPS {
         let next: Vec<f64> = at
             .iter()
@@ -141,24 +131,37 @@ fn pattern_step(ctx: &mut Context, terms: &mut [Term], weights: &Weights, start:
             Some(v) if v < best => {
                 best = v;
                 at = next;
-                moved = true;
             }
             _ => break,
         }
     }
     // A fall of the chi-square under 1 is within what one parameter's noise moves it: not
     // worth the pass of every search after it.
-    let moved = moved && start_chi2 - best >= MEANINGFUL_CHI2_FALL;
+    let moved = start_chi2 - best >= MEANINGFUL_CHI2_FALL;
     if moved {
-        let mut k = 0;
-        for t in terms.iter_mut() {
-            let n = t.theta.len();
-            t.theta.copy_from_slice(&at[k..k + n]);
-            k += n;
+        let thetas: Vec<Vec<f64>> = thetas_of(terms, &at)
+            .into_iter()
+            .map(<[f64]>::to_vec)
+            .collect();
+        for (t, theta) in terms.iter_mut().zip(thetas) {
+            t.theta = theta;
         }
-        ctx.command_lead = at[k];
+        ctx.command_lead = at[at.len() - 1];
     }
     moved
+}
+
+/// Each term's parameters in a [`point`] `x`.
+fn thetas_of<'x>(terms: &[Term], x: &'x [f64]) -> Vec<&'x [f64]> {
+    let mut at = 0;
+    terms
+        .iter()
+        .map(|t| {
+            let v = &x[at..at + t.theta.len()];
+            at += t.theta.len();
+            v
+        })
+        .collect()
 }
 
 /// The index [`objective_key`] takes for the command lead's search.
