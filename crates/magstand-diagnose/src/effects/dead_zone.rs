@@ -52,6 +52,38 @@ impl Effect for DeadZone {
                 .to_string()
         })
     }
+    fn rows_telling_from_stated(
+        &self,
+        ctx: &Context,
+        stated: f64,
+        fitted: f64,
+    ) -> Option<(Vec<bool>, String)> {
+        // Under a dead zone above the stated one, the motors commanded between the two draw
+        // the armed motors' idle current, a coefficient of its own (`armed_in_dead_zone`)
+        // that those rows alone then determine: the fit there improves by a free offset
+        // whatever the stand, wherever the law near its start misfits (a supply or a current
+        // law unlike the nominal one). Those rows cannot testify; what only a higher dead zone
+        // does is map the commands above it to other speeds, where every coefficient is
+        // shared. (A dead zone below the stated one turns rotors the statement holds still:
+        // any row may show it. Without the armed motors' column, as in flight, the rows
+        // between have no coefficient of their own and testify like any other.)
+        (fitted > stated && ctx.armed_current).then(|| {
+            let above = (0..ctx.rec.len())
+                .map(|r| ctx.rec.thr.iter().any(|motor| motor[r] > fitted))
+                .collect();
+            (
+                above,
+                format!(
+                    "its prediction changed significantly only at rows where no motor is \
+                     commanded above the fitted dead zone ({fitted:.3}); there the motors \
+                     commanded between it and the stated one draw the armed motors' idle \
+                     current, whose own coefficient those rows then fit freely. A dead zone \
+                     above the stated one also maps the commands above it to other speeds, and \
+                     the prediction there did not change significantly"
+                ),
+            )
+        })
+    }
     fn apply(&self, _ctx: &Context, s: &mut Scenario, theta: &[f64]) {
         if let Some(p) = Start::from_slice(theta) {
             s.motors.dead_zone = p.dead_zone;

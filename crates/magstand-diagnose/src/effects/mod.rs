@@ -193,6 +193,19 @@ pub trait Effect: Sync + Send {
         false
     }
 
+    /// The rows where a stand constant at `fitted` that really differs from the `stated` one
+    /// must change the prediction, with why, or None where any row may show it (the default).
+    /// A change seen only at the other rows is one the calibrated shape of the current law
+    /// explains as well, and does not reject the statement.
+    fn rows_telling_from_stated(
+        &self,
+        _ctx: &Context,
+        _stated: f64,
+        _fitted: f64,
+    ) -> Option<(Vec<bool>, String)> {
+        None
+    }
+
     /// Why the recording cannot tell the stand constant at `fitted` from the `stated` one by
     /// more than the calibrated shape of the current law (see [`Effect::stand_constant`]),
     /// or None where it can (the default).

@@ -191,6 +191,14 @@ fn is_unstated_constant(effect: &dyn Effect, ctx: &Context) -> bool {
         .is_some_and(|(key, _)| !ctx.nominal.states(key))
 }
 
+/// Where an accepted term would change the prediction: the per-row context, the change in
+/// noise units, and where it is significant.
+struct Evidence<'a> {
+    rows: &'a Rows,
+    change: &'a [Vec3],
+    located: &'a crate::locate::Location,
+}
+
 /// Why a significant candidate does not replicate, if it does not. A term is accepted only
 /// when
 ///
@@ -204,19 +212,21 @@ fn is_unstated_constant(effect: &dyn Effect, ctx: &Context) -> bool {
 ///    a spin-up calibrated from 0.06 s to 1 ms changes every step a little);
 /// 4. its fitted model does not make the held-out error significantly worse on any axis where
 ///    it changes the prediction (the axes it claims); the gain of the test above is over all
-///    axes together.
-///
-/// `change` is the prediction change in noise units, `located` where it is significant.
+///    axes together;
+/// 5. where it rejects a stated stand constant, it changes the prediction significantly at
+///    the rows that tell the two values apart beyond the current law's shape
+///    ([`Effect::rows_telling_from_stated`]).
 fn replication_failure(
     ctx: &Context,
     effect: &dyn Effect,
     c: &Candidate,
     before: &[Vec3],
     weights: &Weights,
-    located: &crate::locate::Location,
+    evidence: &Evidence,
     cfg: &DiagnoseConfig,
 ) -> Option<String> {
     let (theta, _, fitted) = c.fitted.as_ref()?;
+    let located = evidence.located;
     let calibration = calibrates(effect, ctx, theta);
     if !calibration {
         for (search, v) in effect.search(ctx).iter().zip(theta) {
@@ -272,6 +282,24 @@ fn replication_failure(
         return Some(
             "refused: the prediction it changes is not significantly changed on any axis, so there is no place its gain comes from".into(),
         );
+    }
+    let stated = effect
+        .stand_constant(ctx)
+        .filter(|(key, _)| ctx.nominal.states(key));
+    if let Some((_, stated)) = stated
+        && let Some(&fitted) = theta.first()
+        && let Some((telling, why)) = effect.rows_telling_from_stated(ctx, stated, fitted)
+        && locate(
+            evidence.rows,
+            evidence.change,
+            &telling,
+            Signal::Change,
+            cfg.significance,
+        )
+        .axes
+        .is_empty()
+    {
+        return Some(format!("refused: {why}"));
     }
     let (rmse_before, rmse_after) = (
         holdout_rmse(before, &ctx.split.holdout),
@@ -406,7 +434,12 @@ pub(crate) fn forward_search<'e>(
             }
             let change = prediction_change(&fitted.pred, &cur_fit.pred, w);
             let located = locate(rows, &change, &all_rows, Signal::Change, cfg.significance);
-            match replication_failure(shared, open[i], &tried[i], &before, w, &located, cfg) {
+            let evidence = Evidence {
+                rows,
+                change: &change,
+                located: &located,
+            };
+            match replication_failure(shared, open[i], &tried[i], &before, w, &evidence, cfg) {
                 Some(why) => tried[i].result.note = Some(why),
                 None => {
                     best = Some((i, located));
