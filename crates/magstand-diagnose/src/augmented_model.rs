@@ -115,6 +115,12 @@ pub struct AugmentedModel {
     /// needs that column. Absent (false) in older files.
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub follow_recorded_current: bool,
+    /// The motors in the groups the diagnosed recording could tell apart (0-based, each motor
+    /// once), where some motors were commanded alike on every row: per-motor terms were
+    /// fitted per group, and are evaluated so on any recording. Absent where every motor was
+    /// its own group, as in older files.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub motor_groups: Option<Vec<Vec<usize>>>,
 }
 
 /// Largest noise-law coefficient or floor a model file may carry, µT² ((1e5 µT)²).
@@ -320,6 +326,20 @@ impl AugmentedModel {
                 rec.motor_count()
             )));
         }
+        let motor_groups = match &self.motor_groups {
+            None => (0..motors).map(|m| vec![m]).collect(),
+            Some(groups) => {
+                let mut seen: Vec<usize> = groups.iter().flatten().copied().collect();
+                seen.sort_unstable();
+                if groups.iter().any(Vec::is_empty) || seen != (0..motors).collect::<Vec<_>>() {
+                    return Err(bad(format!(
+                        "the model's motor_groups {groups:?} are not groups of its {motors} motors: expected each motor 0..{} in exactly one non-empty group",
+                        motors.saturating_sub(1)
+                    )));
+                }
+                groups.clone()
+            }
+        };
         if self.follow_recorded_voltage && rec.bat_v.is_none() {
             return Err(bad(
                 "the model replays the logged supply voltage, and this recording has no `bat_v` column: expected one (the model was fitted on a recording that had it)".into(),
@@ -362,6 +382,7 @@ impl AugmentedModel {
                 .columns
                 .iter()
                 .any(|c| c == crate::fit::ARMED_IN_DEAD_ZONE),
+            motor_groups,
             replays: Default::default(),
         };
         // Each effect's parameters as its own search defines them: as many as it searches,

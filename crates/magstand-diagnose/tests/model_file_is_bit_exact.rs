@@ -45,6 +45,7 @@ fn coefficients_survive_the_file_bit_for_bit() {
         choice: None,
         follow_recorded_voltage: true,
         follow_recorded_current: true,
+        motor_groups: Some(vec![vec![0, 2], vec![1], vec![3]]),
     };
     let path = std::env::temp_dir().join(format!("magstand-bit-exact-{}.json", std::process::id()));
     model.save(&path).unwrap();

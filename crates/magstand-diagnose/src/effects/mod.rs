@@ -87,8 +87,32 @@ pub struct Context<'a> {
     /// Whether the baseline counts the motors commanded within their dead zone as a column
     /// of its own (see `Design::baseline`); a model file written before that column has none.
     pub armed_current: bool,
+    /// The motors in groups the recording can tell apart (see [`motor_groups`]): per-motor
+    /// physics is fitted per group.
+    pub motor_groups: Vec<Vec<usize>>,
     /// Replays already made of this recording, reused by the searches.
     pub(crate) replays: crate::pipeline::design::ReplayCache,
+}
+
+/// The motors of `thr` (one command column per motor) in groups that no row tells apart: the
+/// motors of a group are commanded alike on every row, so a per-motor gain can be fitted only
+/// for the group (a hexacopter whose attitude commands pair opposite motors). Groups are in
+/// the order of their first motor; a single column for all motors is one motor's group.
+pub fn motor_groups(thr: &[Vec<f64>]) -> Vec<Vec<usize>> {
+    let mut groups: Vec<Vec<usize>> = Vec::new();
+    for (m, col) in thr.iter().enumerate() {
+        let alike = |g: &&mut Vec<usize>| {
+            thr[g[0]]
+                .iter()
+                .zip(col)
+                .all(|(a, b)| a.to_bits() == b.to_bits())
+        };
+        match groups.iter_mut().find(alike) {
+            Some(g) => g.push(m),
+            None => groups.push(vec![m]),
+        }
+    }
+    groups
 }
 
 /// A fitted parameter with its unit and standard uncertainty.
@@ -370,6 +394,7 @@ impl TestStand {
             follow_recorded_current: false,
             speed_powers: crate::fit::MIN_SPEED_POWERS,
             armed_current: true,
+            motor_groups: motor_groups(&self.rec.thr),
             replays: Default::default(),
         }
     }

@@ -186,6 +186,11 @@ fn model_file(
         choice: None,
         follow_recorded_voltage: ctx.follow_recorded_voltage,
         follow_recorded_current: ctx.follow_recorded_current,
+        motor_groups: ctx
+            .motor_groups
+            .iter()
+            .any(|g| g.len() > 1)
+            .then(|| ctx.motor_groups.clone()),
     }
 }
 

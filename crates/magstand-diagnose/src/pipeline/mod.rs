@@ -91,6 +91,7 @@ pub(crate) fn diagnose_with(
         // A flight's motors are armed on every row it keeps: the column would repeat the
         // motors-off reference less the driven motors.
         armed_current: flight.is_none() && crate::fit::arming_varies(&rec.thr),
+        motor_groups: crate::effects::motor_groups(&rec.thr),
         replays: Default::default(),
     };
     let base = calibrate_baseline(&mut ctx, cfg)?;
