@@ -447,6 +447,16 @@ impl Scenario {
         self.motors.check(&c)?;
         self.supply.check(&c)?;
         self.magnetometer.check(&c, self.physics_hz)?;
+        // A stand whose wiring nobody wrote out has the default layout for its own motor
+        // count: the default's four arms would leave a hexacopter's fifth and sixth motors
+        // without leads, and their field, differing from the others', would be taken as the
+        // stand's (a motor asymmetry of the nominal physics that no stand has).
+        if !self.states("wiring") && self.motors.count != 4 && self.wiring.is_default_layout_for(4)
+        {
+            let extra = std::mem::take(&mut self.wiring.extra_motor_ut_per_a);
+            self.wiring = WiringParams::default_for(self.motors.count);
+            self.wiring.extra_motor_ut_per_a = extra;
+        }
         self.wiring.check(
             &c,
             self.motors.count,
@@ -588,6 +598,50 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("count"), "{e}");
+    }
+
+    /// Regression: the default wiring had leads along four arms whatever the motor count, so
+    /// a hexacopter's motors 5 and 6 carried no field and motors 1 to 4 one of -0.048 µT/A
+    /// on z. A diagnosis of a six-motor stand with alike wiring took that difference for the
+    /// stand's, and named `motor_asymmetry` (or `unexplained`) on every effect-free control
+    /// of the independent generator's hexacopter. The default layout now has one lead pair
+    /// per motor, and a motor count set by an override (as a diagnosis sets the recording's)
+    /// takes it too; a `[wiring]` table written out stays as written.
+    #[test]
+    fn a_stand_with_no_wiring_written_has_leads_for_each_of_its_motors() {
+        let text = "name = \"x\"\n[program]\nkind = \"stair\"\nsteps = 4\ndwell_s = 1.0\n";
+        let gains = |v: &ValidScenario| {
+            let p = v.params();
+            p.wiring
+                .gains(p.motors.count, Vec3::from(p.magnetometer.position_m))
+                .motor_ut_per_a
+        };
+        let quad = check(text, &[]).unwrap();
+        assert_eq!(quad.params().wiring, WiringParams::default());
+        for motors in [6, 8] {
+            for v in [
+                check(&format!("{text}[motors]\ncount = {motors}\n"), &[]).unwrap(),
+                quad.with_overrides(&[format!("motors.count={motors}")])
+                    .unwrap(),
+            ] {
+                let g = gains(&v);
+                assert_eq!(g.len(), motors);
+                for (m, gm) in g.iter().enumerate() {
+                    assert!(
+                        (gm - g[0]).norm() < 1e-9 && g[0].norm() > 0.01,
+                        "{motors} motors: motor {} {gm:?} against motor 1 {:?}",
+                        m + 1,
+                        g[0]
+                    );
+                }
+            }
+        }
+        // Written out, a layout is the user's, whatever the motor count.
+        let written = format!(
+            "{text}[motors]\ncount = 6\n[[wiring.segment]]\ncarries = \"motor1\"\nstart_m = [0.05, 0.0, 0.0]\nend_m = [0.2, 0.0, 0.0]\n"
+        );
+        let v = check(&written, &[]).unwrap();
+        assert_eq!(v.params().wiring.segment.len(), 1);
     }
 
     #[test]

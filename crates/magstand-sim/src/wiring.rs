@@ -116,11 +116,21 @@ impl Default for WiringParams {
     /// A power-distribution loop below and beside the flight controller, and twisted ESC lead
     /// pairs along each of four arms: about 4, 10 and -16 µT at a 60 A full-throttle current.
     fn default() -> Self {
+        Self::default_for(4)
+    }
+}
+
+impl WiringParams {
+    /// The default layout for `motors` motors: the power-distribution loop of
+    /// [`WiringParams::default`], and a twisted ESC lead pair along each of `motors` arms
+    /// spaced evenly around the sensor's axis (four of them give the default).
+    pub fn default_for(motors: usize) -> Self {
         let n = Vec3::new(0.207, 0.518, -0.829).normalize();
         let c = -0.09 * n;
         let mut segment = Vec::new();
-        for m in 0..4 {
-            let ang = std::f64::consts::FRAC_PI_4 + m as f64 * std::f64::consts::FRAC_PI_2;
+        let spacing = std::f64::consts::TAU / motors.max(1) as f64;
+        for m in 0..motors {
+            let ang = std::f64::consts::FRAC_PI_4 + m as f64 * spacing;
             let (dir, side) = (
                 Vec3::new(ang.cos(), ang.sin(), 0.0),
                 Vec3::new(-ang.sin(), ang.cos(), 0.0),
@@ -148,6 +158,12 @@ impl Default for WiringParams {
             }],
             extra_motor_ut_per_a: Vec::new(),
         }
+    }
+
+    /// Whether the conductors are those of the default layout for `motors` motors.
+    pub fn is_default_layout_for(&self, motors: usize) -> bool {
+        let d = Self::default_for(motors);
+        self.segment == d.segment && self.loops == d.loops
     }
 }
 
