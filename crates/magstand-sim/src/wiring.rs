@@ -96,7 +96,8 @@ fn default_sides() -> u32 {
 /// All conductors of the stand.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 ///
-/// With no `[wiring]` table the default layout is used; a `[wiring]` table replaces it whole.
+/// With no `[wiring]` table the default layout for the motor count is used
+/// ([`WiringParams::default_for`]); a `[wiring]` table replaces it whole.
 #[serde(deny_unknown_fields)]
 pub struct WiringParams {
     /// Straight conductors.
