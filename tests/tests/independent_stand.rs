@@ -41,6 +41,14 @@ fn named_param<'d>(
     named(d, effect).and_then(|e| e.params.iter().find(|p| p.name == param))
 }
 
+/// Whether a candidate `name` of some round was refused with a note that `says` accepts.
+fn refused_with(d: &magstand_diagnose::Diagnosis, name: &str, says: impl Fn(&str) -> bool) -> bool {
+    d.rounds
+        .iter()
+        .flat_map(|r| &r.candidates)
+        .any(|c| c.name == name && c.note.as_deref().is_some_and(&says))
+}
+
 #[test]
 fn the_generator_depends_on_no_magstand_crate() {
     let manifest =
@@ -343,17 +351,9 @@ fn a_late_magnetometer_is_reported_with_its_timing_ambiguity_and_nothing_else() 
         "delay {} ± {sd} s, generated 0.3 s",
         p.value
     );
-    let noted = o
-        .diagnosis
-        .rounds
-        .iter()
-        .flat_map(|r| &r.candidates)
-        .any(|c| {
-            c.name == "dead_zone"
-                && c.note.as_deref().is_some_and(|n| {
-                    n.contains("no logged command lies between") || n.contains("on any axis")
-                })
-        });
+    let noted = refused_with(&o.diagnosis, "dead_zone", |n| {
+        n.contains("no logged command lies between") || n.contains("on any axis")
+    });
     assert!(noted, "{:?}", o.diagnosis.rounds);
 }
 
@@ -393,17 +393,9 @@ fn a_battery_law_unlike_the_nominal_one_does_not_raise_the_stated_dead_zone() {
     use magstand_tests::independent::{Mode, run_case};
     let o = run_case(&suite_case("battery sag"), Mode::Stated, 2);
     assert_eq!(o.verdict, ["battery_sag"], "{}", o.diagnosis.summary());
-    let refused = o
-        .diagnosis
-        .rounds
-        .iter()
-        .flat_map(|r| &r.candidates)
-        .any(|c| {
-            c.name == "dead_zone"
-                && c.note
-                    .as_deref()
-                    .is_some_and(|n| n.contains("only at rows where no motor is commanded above"))
-        });
+    let refused = refused_with(&o.diagnosis, "dead_zone", |n| {
+        n.contains("only at rows where no motor is commanded above")
+    });
     assert!(refused, "{:?}", o.diagnosis.rounds);
 }
 

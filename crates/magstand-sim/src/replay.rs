@@ -406,7 +406,10 @@ impl Trace {
         let armed = take(motors);
         let current_a = take(motors);
         let mut pair = take(2).into_iter();
-        let (total_a, voltage_v) = (pair.next().unwrap_or_default(), pair.next().unwrap_or_default());
+        let (total_a, voltage_v) = (
+            pair.next().unwrap_or_default(),
+            pair.next().unwrap_or_default(),
+        );
         let modules = self
             .modules
             .iter()
