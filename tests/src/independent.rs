@@ -155,12 +155,21 @@ pub fn cases() -> Vec<Case> {
 
 /// The generator's stand the suite runs on: [`Stand::default`], or with `STAND=held-out` in
 /// the environment [`Stand::held_out`] (a hexacopter at 50 Hz with other laws' constants,
-/// never looked at while the diagnosis was developed).
+/// never looked at while the diagnosis was developed); `RATE_HZ` in the environment samples
+/// either at another rate (the recordings keep their number of rows).
 pub fn suite_stand() -> Stand {
-    match std::env::var("STAND").as_deref() {
+    let mut stand = match std::env::var("STAND").as_deref() {
         Ok("held-out") => Stand::held_out(),
         _ => Stand::default(),
+    };
+    if let Some(rate_hz) = std::env::var("RATE_HZ")
+        .ok()
+        .and_then(|r| r.parse::<f64>().ok())
+        .filter(|r| r.is_finite() && *r > 0.0)
+    {
+        stand.rate_hz = rate_hz;
     }
+    stand
 }
 
 /// A generated recording of `case` on the suite's stand, read through magstand's CSV reader.
