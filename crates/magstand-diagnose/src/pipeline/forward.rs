@@ -197,6 +197,8 @@ struct Evidence<'a> {
     rows: &'a Rows,
     change: &'a [Vec3],
     located: &'a crate::locate::Location,
+    /// Design columns the term adds.
+    columns: usize,
 }
 
 /// Why a significant candidate does not replicate, if it does not. A term is accepted only
@@ -215,7 +217,13 @@ struct Evidence<'a> {
 ///    axes together;
 /// 5. where it rejects a stated stand constant, it changes the prediction significantly at
 ///    the rows that tell the two values apart beyond the current law's shape
-///    ([`Effect::rows_telling_from_stated`]).
+///    ([`Effect::rows_telling_from_stated`]);
+/// 6. it lowers the chi-square of the identification rows by more than its parameters would
+///    from noise (a likelihood-ratio test at the significance, the fall divided by the
+///    long-run variance factor of the residuals, [`BatchMeans`](crate::stats::BatchMeans)):
+///    the held-out gain's blocks can agree by chance where the misfit they share runs for
+///    seconds, as at 200 Hz; the fit's own uncertainty then says the term's coefficients are
+///    not told from zero. A calibration is exempt, as above.
 fn replication_failure(
     ctx: &Context,
     effect: &dyn Effect,
@@ -300,6 +308,29 @@ fn replication_failure(
         .is_empty()
     {
         return Some(format!("refused: {why}"));
+    }
+    if !calibration {
+        let chi2_identification = |resid: &[Vec3]| -> f64 {
+            resid
+                .iter()
+                .zip(&weights.0)
+                .zip(&ctx.split.holdout)
+                .filter(|(_, held)| !**held)
+                .map(|((e, w), _)| (0..3).map(|a| w[a] * e[a] * e[a]).sum::<f64>())
+                .sum()
+        };
+        let fall = chi2_identification(before) - chi2_identification(&after);
+        let parameters = 3 * evidence.columns + theta.len();
+        let lr = fall / fitted.sd_factor.powi(2).max(1.0);
+        // At the significance of the other replication tests (the round's threshold,
+        // corrected for the candidates tried beside it, is the gain test's).
+        let needed = crate::stats::chi2_quantile(1.0 - cfg.significance, parameters as f64);
+        if !(lr > needed) {
+            return Some(format!(
+                "refused: it lowers the fit's chi-square by {fall:.1}, {lr:.1} once widened for the residuals' correlation (x {:.2} in sd), where {parameters} parameters fitted to noise would lower it by up to {needed:.1} (p = {:.2e}): its coefficients are not told from zero",
+                fitted.sd_factor, cfg.significance
+            ));
+        }
     }
     let (rmse_before, rmse_after) = (
         holdout_rmse(before, &ctx.split.holdout),
@@ -438,6 +469,7 @@ pub(crate) fn forward_search<'e>(
                 rows,
                 change: &change,
                 located: &located,
+                columns: fitted.coef.len().saturating_sub(cur_fit.coef.len()),
             };
             match replication_failure(shared, open[i], &tried[i], &before, w, &evidence, cfg) {
                 Some(why) => tried[i].result.note = Some(why),
