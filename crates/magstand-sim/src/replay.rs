@@ -377,54 +377,35 @@ impl Trace {
     pub fn delayed(&self, delay_s: f64) -> Trace {
         use rayon::prelude::*;
         let at = locate_increasing(&self.t_s, self.t_s.iter().map(|&t| t - delay_s));
-        // Every column shifted on its own, the columns spread over the cores: a search over
-        // the delay shifts a replay at each of its steps, and the searches' steps run one
-        // after another. Each column's values are the same bits whatever the thread count.
-        let motors = self.speed.len();
-        let scalar: Vec<&Vec<f64>> = self
-            .speed
-            .iter()
-            .chain(&self.driven)
-            .chain(&self.armed)
-            .chain(&self.current_a)
-            .chain([&self.total_a, &self.voltage_v])
-            .chain(self.modules.iter().map(|(_, c)| c))
-            .collect();
-        let (mut shifted_columns, extra_ut) = rayon::join(
-            || {
-                scalar
-                    .par_iter()
-                    .map(|col| shifted(col, &at))
-                    .collect::<Vec<_>>()
-                    .into_iter()
-            },
+        // Every column shifted on its own, the per-motor ones spread over the cores: a search
+        // over the delay shifts a replay at each of its steps, and the searches' steps run
+        // one after another. Each column's values are the same bits whatever the thread count.
+        let shift = |col: &Vec<f64>| shifted(col, &at);
+        let per_motor = |cols: &[Vec<f64>]| cols.par_iter().map(shift).collect();
+        let (extra_ut, (speed, driven, armed, current_a)) = rayon::join(
             || shifted(&self.extra_ut, &at),
+            || {
+                (
+                    per_motor(&self.speed),
+                    per_motor(&self.driven),
+                    per_motor(&self.armed),
+                    per_motor(&self.current_a),
+                )
+            },
         );
-        let mut take = |n: usize| shifted_columns.by_ref().take(n).collect::<Vec<_>>();
-        let speed = take(motors);
-        let driven = take(motors);
-        let armed = take(motors);
-        let current_a = take(motors);
-        let mut pair = take(2).into_iter();
-        let (total_a, voltage_v) = (
-            pair.next().unwrap_or_default(),
-            pair.next().unwrap_or_default(),
-        );
-        let modules = self
-            .modules
-            .iter()
-            .map(|(name, _)| *name)
-            .zip(shifted_columns)
-            .collect();
         Trace {
             t_s: self.t_s.clone(),
             speed,
             driven,
             armed,
             current_a,
-            total_a,
-            voltage_v,
-            modules,
+            total_a: shift(&self.total_a),
+            voltage_v: shift(&self.voltage_v),
+            modules: self
+                .modules
+                .iter()
+                .map(|(name, col)| (*name, shift(col)))
+                .collect(),
             extra_ut,
         }
     }

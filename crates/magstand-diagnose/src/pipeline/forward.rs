@@ -133,12 +133,9 @@ const REJECT_STATED_SD: f64 = 3.0;
 /// with why. (A constant the scenario leaves out is tested by its held-out gain
 /// and, when accepted, reported as calibration: see [`calibrates`].)
 fn refuse_within_stated(c: &mut Candidate, effect: &dyn Effect, ctx: &Context) {
-    let Some((key, stated)) = effect.stand_constant(ctx) else {
+    let Some((key, stated)) = stated_constant(effect, ctx) else {
         return;
     };
-    if !ctx.nominal.states(key) {
-        return;
-    }
     // An effect that re-fits a stand constant searches that constant alone (asserted for the
     // whole catalog by `every_effect_searches_its_declared_parameters`).
     let Some((theta, sd, fitted)) = &c.fitted else {
@@ -183,6 +180,13 @@ pub(crate) fn calibrates(effect: &dyn Effect, ctx: &Context, theta: &[f64]) -> b
     is_unstated_constant(effect, ctx) && effect.beyond_calibration(theta).is_none()
 }
 
+/// The stand constant `effect` fits and its value, where the scenario states it.
+fn stated_constant(effect: &dyn Effect, ctx: &Context) -> Option<(&'static str, f64)> {
+    effect
+        .stand_constant(ctx)
+        .filter(|(key, _)| ctx.nominal.states(key))
+}
+
 /// Whether `effect` fits a stand constant the scenario leaves out (a dead zone, a spin-up
 /// time): a candidate of the calibration rounds that open the search.
 fn is_unstated_constant(effect: &dyn Effect, ctx: &Context) -> bool {
@@ -197,8 +201,8 @@ struct Evidence<'a> {
     rows: &'a Rows,
     change: &'a [Vec3],
     located: &'a crate::locate::Location,
-    /// Design columns the term adds.
-    columns: usize,
+    /// The model the term would join, fitted with the same weights.
+    current: &'a Fitted,
 }
 
 /// Why a significant candidate does not replicate, if it does not. A term is accepted only
@@ -291,10 +295,7 @@ fn replication_failure(
             "refused: the prediction it changes is not significantly changed on any axis, so there is no place its gain comes from".into(),
         );
     }
-    let stated = effect
-        .stand_constant(ctx)
-        .filter(|(key, _)| ctx.nominal.states(key));
-    if let Some((_, stated)) = stated
+    if let Some((_, stated)) = stated_constant(effect, ctx)
         && let Some(&fitted) = theta.first()
         && let Some((telling, why)) = effect.rows_telling_from_stated(ctx, stated, fitted)
         && locate(
@@ -310,17 +311,13 @@ fn replication_failure(
         return Some(format!("refused: {why}"));
     }
     if !calibration {
-        let chi2_identification = |resid: &[Vec3]| -> f64 {
-            resid
-                .iter()
-                .zip(&weights.0)
-                .zip(&ctx.split.holdout)
-                .filter(|(_, held)| !**held)
-                .map(|((e, w), _)| (0..3).map(|a| w[a] * e[a] * e[a]).sum::<f64>())
-                .sum()
-        };
-        let fall = chi2_identification(before) - chi2_identification(&after);
-        let parameters = 3 * evidence.columns + theta.len();
+        // Both chi-squares are over the identification rows with the same weights.
+        let fall = evidence.current.chi2_fit - fitted.chi2_fit;
+        let columns = fitted
+            .coef
+            .len()
+            .saturating_sub(evidence.current.coef.len());
+        let parameters = 3 * columns + theta.len();
         let lr = fall / fitted.sd_factor.powi(2).max(1.0);
         // At the significance of the other replication tests (the round's threshold,
         // corrected for the candidates tried beside it, is the gain test's).
@@ -469,7 +466,7 @@ pub(crate) fn forward_search<'e>(
                 rows,
                 change: &change,
                 located: &located,
-                columns: fitted.coef.len().saturating_sub(cur_fit.coef.len()),
+                current: cur_fit,
             };
             match replication_failure(shared, open[i], &tried[i], &before, w, &evidence, cfg) {
                 Some(why) => tried[i].result.note = Some(why),
