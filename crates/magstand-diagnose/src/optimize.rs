@@ -142,12 +142,36 @@ pub(crate) fn minimize_near(
     if !value.is_finite() {
         return minimize(searches, &f);
     }
-    polish(searches, start, value, &eval)
+    polish(searches, start, value, &eval, Precision::Fine)
 }
+
+/// How far a search refines the best point of its grid.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) enum Precision {
+    /// To [`REFINE_TOLERANCE_STEPS`] of a grid step, each coordinate twice where there are
+    /// several, with each parameter's uncertainty.
+    Fine,
+    /// To [`COARSE_TOLERANCE_STEPS`], each coordinate once, without uncertainties: where a
+    /// fine search from the point found follows (a refinement's first pass, which only has to
+    /// find the basin).
+    Coarse,
+}
+
+/// The coarse refinement's accuracy as a fraction of a grid step (see [`Precision::Coarse`]).
+const COARSE_TOLERANCE_STEPS: f64 = 0.03;
 
 /// Minimizes `f` (None where the fit fails) over the searches.
 pub(crate) fn minimize(
     searches: &[Search],
+    f: impl Fn(&[f64]) -> Option<f64> + Sync,
+) -> Option<Optimum> {
+    minimize_to(searches, Precision::Fine, f)
+}
+
+/// [`minimize`] to `precision`.
+pub(crate) fn minimize_to(
+    searches: &[Search],
+    precision: Precision,
     f: impl Fn(&[f64]) -> Option<f64> + Sync,
 ) -> Option<Optimum> {
     let eval = in_search_coordinates(searches, &f);
@@ -202,7 +226,7 @@ pub(crate) fn minimize(
     if !best.is_finite() {
         return None;
     }
-    polish(searches, best_u, best, &eval)
+    polish(searches, best_u, best, &eval, precision)
 }
 
 /// Values of a grid of `n` points where the search needs them, evaluated in parallel: every
@@ -248,16 +272,21 @@ fn coarse_to_fine(n: usize, f: impl Fn(usize) -> f64 + Sync) -> Vec<f64> {
 /// Fewest grid points searched coarse to fine ([`coarse_to_fine`]).
 const COARSE_GRID_POINTS: usize = 9;
 
-/// Brent's refinement of each coordinate around `best_u` (value `best`), then each
-/// parameter's uncertainty from the curvature.
+/// Brent's refinement of each coordinate around `best_u` (value `best`) to `precision`, then
+/// (when fine) each parameter's uncertainty from the curvature.
 fn polish(
     searches: &[Search],
     mut best_u: Vec<f64>,
     mut best: f64,
     eval: &(impl Fn(&[f64]) -> f64 + Sync),
+    precision: Precision,
 ) -> Option<Optimum> {
     // Refinement by Brent's method, coordinate by coordinate.
-    let passes = if searches.len() > 1 { 2 } else { 1 };
+    let (passes, tolerance_steps) = match precision {
+        Precision::Fine if searches.len() > 1 => (2, REFINE_TOLERANCE_STEPS),
+        Precision::Fine => (1, REFINE_TOLERANCE_STEPS),
+        Precision::Coarse => (1, COARSE_TOLERANCE_STEPS),
+    };
     for _ in 0..passes {
         for k in 0..searches.len() {
             let (ulo, uhi) = searches[k].u_range();
@@ -286,7 +315,7 @@ fn polish(
                     continue;
                 }
             }
-            let Some((x, fx)) = brent(a, b, REFINE_TOLERANCE_STEPS * h, |x| at(x, &best_u)) else {
+            let Some((x, fx)) = brent(a, b, tolerance_steps * h, |x| at(x, &best_u)) else {
                 continue;
             };
             if fx < best {
@@ -294,6 +323,18 @@ fn polish(
                 best_u[k] = x;
             }
         }
+    }
+    let theta = searches
+        .iter()
+        .zip(&best_u)
+        .map(|(s, &u)| s.value_at(u))
+        .collect();
+    if precision == Precision::Coarse {
+        return Some(Optimum {
+            theta,
+            value: best,
+            sd: vec![None; searches.len()],
+        });
     }
     // Curvature in the search coordinate, converted to the parameter's units (the two
     // neighbours of each parameter evaluated in parallel).
@@ -314,11 +355,7 @@ fn polish(
         })
         .collect();
     Some(Optimum {
-        theta: searches
-            .iter()
-            .zip(&best_u)
-            .map(|(s, &u)| s.value_at(u))
-            .collect(),
+        theta,
         value: best,
         sd,
     })
@@ -441,6 +478,42 @@ mod tests {
         );
         let v = coarse_to_fine(9, |i| if i % 2 == 0 { f64::INFINITY } else { i as f64 });
         assert_eq!(v[1], 1.0, "{v:?}");
+    }
+
+    #[test]
+    fn a_coarse_search_finds_the_basin_in_fewer_evaluations_without_uncertainties() {
+        use std::sync::atomic::{AtomicUsize, Ordering};
+        let calls = AtomicUsize::new(0);
+        // Two basins; the deeper one at 0.71 (sd 0.05), which a fine search then refines.
+        let f = |t: &[f64]| {
+            calls.fetch_add(1, Ordering::Relaxed);
+            let x = t[0];
+            Some((((x - 0.2) / 0.05).powi(2) + 3.0).min(((x - 0.71) / 0.05).powi(2)))
+        };
+        let s = [search("x", 0.0, 1.0, false)];
+        let coarse = minimize_to(&s, Precision::Coarse, f).unwrap();
+        let n_coarse = calls.swap(0, Ordering::Relaxed);
+        let fine = minimize(&s, f).unwrap();
+        let n_fine = calls.load(Ordering::Relaxed);
+        let step = 1.0 / 8.0;
+        assert!(
+            (coarse.theta[0] - 0.71).abs() < 3.0 * COARSE_TOLERANCE_STEPS * step,
+            "coarse {:?}",
+            coarse.theta
+        );
+        assert!(coarse.sd.iter().all(Option::is_none), "{:?}", coarse.sd);
+        assert!((fine.theta[0] - 0.71).abs() < 1e-4, "fine {:?}", fine.theta);
+        assert!(fine.sd[0].is_some(), "{:?}", fine.sd);
+        assert!(
+            n_coarse < n_fine,
+            "{n_coarse} evaluations coarse, {n_fine} fine"
+        );
+        // Refined from the coarse point, the fine search ends where the whole search did.
+        let near = minimize_near(&s, Some(&coarse.theta), f).unwrap();
+        assert!(
+            (near.theta[0] - fine.theta[0]).abs() < 1e-4,
+            "{near:?} vs {fine:?}"
+        );
     }
 
     #[test]

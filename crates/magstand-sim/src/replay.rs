@@ -263,6 +263,11 @@ pub fn replay_logged(
         None if fixed_voltage => no_load_v,
         None => supply.voltage_v(&p.supply, total_a),
     };
+    // Where nothing within an interval couples the motors to each other or to a module (the
+    // voltage is the logged one or does not move with the load, and no module adds a field),
+    // each motor's first-order lag toward a held target is advanced exactly in one step: the
+    // substeps would only cost exponentials and give the same state to rounding.
+    let exact_in_one_step = stand_parts.is_empty() && (bat_v.is_some() || fixed_voltage);
     let mut steps = Vec::new();
     let mut spinup = LagFactor::new(p.motors.spinup_tau_s);
     for r in 0..rows {
@@ -270,7 +275,12 @@ pub fn replay_logged(
             let dt = t_s[r] - t_s[r - 1];
             let lead_from = dt * (1.0 - command_lead.clamp(0.0, 1.0));
             let settle_s = SETTLE_TIME_CONSTANTS * p.motors.spinup_tau_s;
-            substeps_into(&mut steps, dt, lead_from, settle_s);
+            if exact_in_one_step {
+                steps.clear();
+                steps.push((0.0, dt, dt));
+            } else {
+                substeps_into(&mut steps, dt, lead_from, settle_s);
+            }
             for &(a, b, h) in &steps {
                 let voltage = voltage_at(&supply, r - 1, total_a);
                 // A substep that straddles the switch is split at it.
@@ -539,6 +549,52 @@ mod tests {
             }
         }
         assert!(within > 0, "no row within the dead zone");
+    }
+
+    /// Where nothing couples the motors within an interval (a bench whose voltage does not
+    /// move with the load, no module that adds a field), an interval is replayed in one step
+    /// per command: the same state as the substeps give. A source resistance of 1e-300 ohm
+    /// leaves the voltage the same bits but takes the substepped path.
+    #[test]
+    fn an_uncoupled_interval_in_one_step_is_its_substeps_to_rounding() {
+        let bench = |resistance: &str| {
+            let toml = format!(
+                "{STAIR}\n[supply]\nkind = \"bench\"\nvoltage_v = 12.0\nsource_resistance_ohm = {resistance}\n"
+            );
+            Scenario::from_toml_str(&toml, "t")
+                .unwrap()
+                .check("t", None)
+                .unwrap()
+        };
+        let (one_step, substepped) = (bench("0.0"), bench("1e-300"));
+        let rec = simulate(&one_step, 3);
+        let mut thr = rec.thr.clone();
+        // Commands that differ between motors and change within each interval's lead.
+        for (m, col) in thr.iter_mut().enumerate() {
+            for (r, c) in col.iter_mut().enumerate() {
+                *c = (*c + 0.05 * ((r * (m + 2)) as f64 * 0.7).sin()).clamp(0.0, 1.0);
+            }
+        }
+        for lead in [0.0, 0.3, 1.0] {
+            let a = replay(one_step.params(), &rec.t_s, &thr, None, lead);
+            let b = replay(substepped.params(), &rec.t_s, &thr, None, lead);
+            for r in 0..rec.len() {
+                assert!(
+                    (a.total_a[r] - b.total_a[r]).abs() <= 1e-12 * b.total_a[r].abs().max(1.0),
+                    "lead {lead}, row {r}: {} A in one step, {} A in substeps",
+                    a.total_a[r],
+                    b.total_a[r]
+                );
+                for m in 0..a.speed.len() {
+                    assert!(
+                        (a.speed[m][r] - b.speed[m][r]).abs() <= 1e-12,
+                        "lead {lead}, row {r}, motor {m}: speed {} vs {}",
+                        a.speed[m][r],
+                        b.speed[m][r]
+                    );
+                }
+            }
+        }
     }
 
     #[test]

@@ -3,7 +3,7 @@
 //! offered to the next round as a new effect.
 use crate::effects::Context;
 use crate::fit::Weights;
-use crate::optimize::{Search, minimize_near};
+use crate::optimize::{Precision, Search, minimize_near, minimize_to};
 
 use super::design::{Term, as_refs, chi2_of};
 
@@ -51,14 +51,22 @@ pub(crate) fn refine(ctx: &mut Context, terms: &mut [Term], weights: &Weights) {
             };
             // The first pass searches each term over its whole range (a new term can move
             // another's optimum to another basin: a dead zone between two logged command
-            // levels); the second only refines what the first found, the others having
-            // moved by their own refinement since.
-            let from = (pass > 0).then_some(terms[k].theta.as_slice());
-            if let Some(opt) = minimize_near(&searches, from, chi2) {
+            // levels); the second refines what the first found, the others having moved by
+            // their own refinement since. An older term's first search only has to find that
+            // basin: it is coarse, and always refined in the next pass. The newest term and
+            // the lead, which the new term moves most, are searched finely throughout.
+            let coarse = pass == 0 && k + 1 < terms.len();
+            let found = if coarse {
+                minimize_to(&searches, Precision::Coarse, chi2)
+            } else {
+                let from = (pass > 0).then_some(terms[k].theta.as_slice());
+                minimize_near(&searches, from, chi2)
+            };
+            if let Some(opt) = found {
                 terms[k].theta = opt.theta;
                 terms[k].theta_sd = opt.sd;
             }
-            searched_at[k] = Some(key);
+            searched_at[k] = (!coarse).then_some(key);
         }
         let key = objective_key(ctx, terms, TIMING);
         if timed_at.as_ref() != Some(&key) {
