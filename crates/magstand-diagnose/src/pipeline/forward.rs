@@ -354,60 +354,6 @@ fn replication_failure(
 }
 
 /// Runs the forward search over `effects` from the baseline `base`.
-/// Per-motor terms follow each motor's current as the model `m` calibrated its law, where the
-/// data tell that law's shape from the nominal motor current's (see
-/// [`shape_told_from_nominal`]), until a per-motor term is in the model: from then on the
-/// current it was fitted with stays, so that the model file evaluates the term as it was
-/// fitted.
-fn follow_calibrated_current(ctx: &mut Context, m: &ModelFit, terms: &[Term], significance: f64) {
-    if terms.iter().any(|t| t.effect.name() == "motor_asymmetry") {
-        return;
-    }
-    ctx.motor_current_law = crate::effects::calibrated_current_law(
-        &m.built.design,
-        &m.fitted.coef,
-        &m.built.load_a(),
-        &ctx.split.holdout,
-    )
-    .filter(|_| shape_told_from_nominal(ctx, m, significance));
-}
-
-/// Whether the model `m` fits the identification rows significantly better with its current
-/// law's columns than with the nominal motor current in their place (one column): a
-/// likelihood-ratio test at `significance`, widened for the residuals' correlation as a name's
-/// is. Where it does not (a stand whose motors barely reach the sensor in common, or whose
-/// current the nominal motor already follows), the law's shape is noise, and per-motor terms
-/// keep the nominal current.
-fn shape_told_from_nominal(ctx: &Context, m: &ModelFit, significance: f64) -> bool {
-    let design = &m.built.design;
-    let mut nominal = crate::fit::Design::default();
-    let mut law_columns = 0;
-    for (name, column) in design.names.iter().zip(&design.columns) {
-        if crate::fit::LawColumn::parse(name).is_some() {
-            law_columns += 1;
-        } else {
-            nominal.push(name.clone(), column.clone());
-        }
-    }
-    if law_columns < 2 {
-        return false;
-    }
-    nominal.push("nominal_current_a", m.built.load_a());
-    let Ok(fitted) = crate::fit::fit(
-        &nominal,
-        &ctx.rec.mag_ut,
-        Some(&m.built.fixed),
-        &m.weights,
-        &ctx.split.holdout,
-    ) else {
-        return false;
-    };
-    let fall = fitted.chi2_fit - m.fitted.chi2_fit;
-    let lr = fall / m.fitted.sd_factor.powi(2).max(1.0);
-    let parameters = 3 * (law_columns - 1);
-    lr > crate::stats::chi2_quantile(1.0 - significance, parameters as f64)
-}
-
 pub(crate) fn forward_search<'e>(
     ctx: &mut Context,
     effects: &'e [Box<dyn Effect>],
@@ -423,7 +369,6 @@ pub(crate) fn forward_search<'e>(
     let mut reports: Vec<EffectReport> = Vec::new();
     let mut stages = vec![("baseline".to_string(), base.model.fitted.residuals(y))];
     let mut current = (base.model.fitted.clone(), base.model.weights.clone());
-    follow_calibrated_current(ctx, &base.model, &terms, cfg.significance);
     let mut calibrating = true;
     let mut unchanged: Vec<Candidate> = Vec::new();
     while terms.len() < cfg.max_terms {
@@ -569,7 +514,6 @@ pub(crate) fn forward_search<'e>(
         // the interval at which commands act are refitted with it.
         refine(ctx, &mut terms, w);
         let m = fit_model(ctx, &terms, Some(w))?;
-        follow_calibrated_current(ctx, &m, &terms, cfg.significance);
         current = (m.fitted, m.weights);
         rounds.push(round);
     }
