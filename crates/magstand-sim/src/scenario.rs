@@ -451,7 +451,11 @@ impl Scenario {
         // count: the default's four arms would leave a hexacopter's fifth and sixth motors
         // without leads, and their field, differing from the others', would be taken as the
         // stand's (a motor asymmetry of the nominal physics that no stand has).
-        if !self.states("wiring") && self.motors.count != 4 && self.wiring.is_default_layout_for(4)
+        if !self.states("wiring")
+            && self.motors.count != crate::wiring::DEFAULT_ARMS
+            && self
+                .wiring
+                .is_default_layout_for(crate::wiring::DEFAULT_ARMS)
         {
             let extra = std::mem::take(&mut self.wiring.extra_motor_ut_per_a);
             self.wiring = WiringParams::default_for(self.motors.count);

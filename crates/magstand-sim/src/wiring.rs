@@ -113,11 +113,14 @@ pub struct WiringParams {
     pub extra_motor_ut_per_a: Vec<[f64; 3]>,
 }
 
+/// The arms of the default layout ([`WiringParams::default`]): a quadrotor's.
+pub const DEFAULT_ARMS: usize = 4;
+
 impl Default for WiringParams {
     /// A power-distribution loop below and beside the flight controller, and twisted ESC lead
     /// pairs along each of four arms: about 4, 10 and -16 µT at a 60 A full-throttle current.
     fn default() -> Self {
-        Self::default_for(4)
+        Self::default_for(DEFAULT_ARMS)
     }
 }
 

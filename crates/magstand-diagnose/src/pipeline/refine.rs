@@ -109,8 +109,9 @@ fn pattern_step(ctx: &mut Context, terms: &mut [Term], weights: &Weights, start:
     }
     let ranges: Vec<(f64, f64)> = terms
         .iter()
-        .flat_map(|t| t.effect.search(ctx).into_iter().map(|s| (s.lo, s.hi)))
-        .chain(std::iter::once((0.0, 1.0)))
+        .flat_map(|t| t.effect.search(ctx))
+        .chain([lead_search()])
+        .map(|s| (s.lo, s.hi))
         .collect();
     if ranges.len() != end.len() {
         return false;
@@ -201,16 +202,21 @@ fn calibrate_timing_from(
     from: Option<f64>,
 ) -> f64 {
     let refs = as_refs(terms);
-    let search = [Search {
+    let search = [lead_search()];
+    minimize_near(&search, from.as_ref().map(std::slice::from_ref), |t| {
+        chi2_of(ctx, &refs, t[0], weights)
+    })
+    .map_or(0.5, |o| o.theta[0])
+}
+
+/// Where within each interval logged command changes take effect: searched in 0..1.
+fn lead_search() -> Search {
+    Search {
         name: "command_lead",
         unit: "interval",
         lo: 0.0,
         hi: 1.0,
         log: false,
         points: 5,
-    }];
-    minimize_near(&search, from.as_ref().map(std::slice::from_ref), |t| {
-        chi2_of(ctx, &refs, t[0], weights)
-    })
-    .map_or(0.5, |o| o.theta[0])
+    }
 }
