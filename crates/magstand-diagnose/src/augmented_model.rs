@@ -121,6 +121,23 @@ pub struct AugmentedModel {
     /// its own group, as in older files.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub motor_groups: Option<Vec<Vec<usize>>>,
+    /// Each motor's current as the calibrated law has it, which per-motor terms follow.
+    /// Absent in older files and where the law could not be told (the nominal motor's current
+    /// is followed then).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub motor_current_law: Option<MotorCurrentLaw>,
+}
+
+/// A motor's current as the calibrated current law has it: `sum_j a_per_unit[j] * x_j`, where
+/// `x_j` is the motor's part of the baseline column `columns[j]` (`driven`,
+/// `armed_in_dead_zone`, `speed^k`), A. Per-motor terms follow this current rather than the
+/// nominal motor's, whose shape at low commands may be another stand's.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct MotorCurrentLaw {
+    /// Baseline current-law columns.
+    pub columns: Vec<String>,
+    /// Amperes per unit of each column.
+    pub a_per_unit: Vec<f64>,
 }
 
 /// Largest noise-law coefficient or floor a model file may carry, µT² ((1e5 µT)²).
@@ -340,6 +357,23 @@ impl AugmentedModel {
                 groups.clone()
             }
         };
+        if let Some(law) = &self.motor_current_law {
+            let known =
+                |c: &String| self.columns.contains(c) && crate::fit::LawColumn::parse(c).is_some();
+            if law.columns.len() != law.a_per_unit.len()
+                || law.columns.is_empty()
+                || !law.columns.iter().all(known)
+                || !law.a_per_unit.iter().all(|a| a.is_finite())
+            {
+                return Err(bad(format!(
+                    "the model's motor_current_law has columns {:?} and a_per_unit {:?}: expected as many finite values as columns, each column one of the model's current-law columns (driven, {}, speed^1..speed^{})",
+                    law.columns,
+                    law.a_per_unit,
+                    crate::fit::ARMED_IN_DEAD_ZONE,
+                    crate::fit::MAX_SPEED_POWERS
+                )));
+            }
+        }
         if self.follow_recorded_voltage && rec.bat_v.is_none() {
             return Err(bad(
                 "the model replays the logged supply voltage, and this recording has no `bat_v` column: expected one (the model was fitted on a recording that had it)".into(),
@@ -383,6 +417,7 @@ impl AugmentedModel {
                 .iter()
                 .any(|c| c == crate::fit::ARMED_IN_DEAD_ZONE),
             motor_groups,
+            motor_current_law: self.motor_current_law.clone(),
             replays: Default::default(),
         };
         // Each effect's parameters as its own search defines them: as many as it searches,

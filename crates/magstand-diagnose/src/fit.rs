@@ -139,6 +139,35 @@ pub(crate) fn arming_varies(thr: &[Vec<f64>]) -> bool {
     (1..rows).any(|r| armed(r) != armed(0))
 }
 
+/// A baseline current-law column, as the part of it one motor contributes (the column is that
+/// part summed over the motors, as [`Design::baseline`] builds it).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) enum LawColumn {
+    /// `driven`: 1 while the ESC drives the motor.
+    Driven,
+    /// [`ARMED_IN_DEAD_ZONE`]: 1 while the motor is armed but commanded within its dead zone.
+    ArmedInDeadZone,
+    /// `speed^k`: the driven motor's normalised speed to the power `k` (1 to
+    /// [`MAX_SPEED_POWERS`]).
+    SpeedPower(i32),
+}
+
+impl LawColumn {
+    /// The law column named `name`, or None for any other column.
+    pub(crate) fn parse(name: &str) -> Option<LawColumn> {
+        match name {
+            "driven" => Some(LawColumn::Driven),
+            ARMED_IN_DEAD_ZONE => Some(LawColumn::ArmedInDeadZone),
+            _ => {
+                let k: i32 = name.strip_prefix("speed^")?.parse().ok()?;
+                (1..=MAX_SPEED_POWERS as i32)
+                    .contains(&k)
+                    .then_some(LawColumn::SpeedPower(k))
+            }
+        }
+    }
+}
+
 /// Whether a design column may take no part in a fit: [`ARMED_IN_DEAD_ZONE`] and a term's
 /// columns made from it, which vanish where no motor is armed within its dead zone.
 fn may_vanish(name: &str) -> bool {

@@ -4,7 +4,7 @@
 //! reproduce the model exactly, or `compensate` from the file and from memory disagree. The
 //! workspace now enables serde_json's `float_roundtrip`.
 use magstand_diagnose::augmented_model::{
-    AugmentedModel, AugmentedTerm, FORMAT, NoiseLaw, VERSION,
+    AugmentedModel, AugmentedTerm, FORMAT, MotorCurrentLaw, NoiseLaw, VERSION,
 };
 
 #[test]
@@ -46,6 +46,10 @@ fn coefficients_survive_the_file_bit_for_bit() {
         follow_recorded_voltage: true,
         follow_recorded_current: true,
         motor_groups: Some(vec![vec![0, 2], vec![1], vec![3]]),
+        motor_current_law: Some(MotorCurrentLaw {
+            columns: vec!["driven".into(), "speed^1".into()],
+            a_per_unit: vec![hard[0], hard[4]],
+        }),
     };
     let path = std::env::temp_dir().join(format!("magstand-bit-exact-{}.json", std::process::id()));
     model.save(&path).unwrap();

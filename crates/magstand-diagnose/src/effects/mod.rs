@@ -51,6 +51,7 @@ pub use current_lag::{CurrentLag, MAX_SPINUP_S};
 pub use dead_zone::DeadZone;
 pub use hysteresis::Hysteresis;
 pub use motor_asymmetry::MotorAsymmetry;
+pub(crate) use motor_asymmetry::calibrated_current_law;
 pub use thermal_drift::ThermalDrift;
 pub use time_offset::TimeOffset;
 
@@ -90,6 +91,10 @@ pub struct Context<'a> {
     /// The motors in groups the recording can tell apart (see [`motor_groups`]): per-motor
     /// physics is fitted per group.
     pub motor_groups: Vec<Vec<usize>>,
+    /// Each motor's current as the baseline's calibrated law has it, which a per-motor term
+    /// follows once it is named (see [`MotorCurrentLaw`](crate::augmented_model::MotorCurrentLaw));
+    /// None: the nominal motor's current, on which such a term is named.
+    pub motor_current_law: Option<crate::augmented_model::MotorCurrentLaw>,
     /// Replays already made of this recording, reused by the searches.
     pub(crate) replays: crate::pipeline::design::ReplayCache,
 }
@@ -395,6 +400,7 @@ impl TestStand {
             speed_powers: crate::fit::MIN_SPEED_POWERS,
             armed_current: true,
             motor_groups: motor_groups(&self.rec.thr),
+            motor_current_law: None,
             replays: Default::default(),
         }
     }

@@ -1,7 +1,10 @@
 use magstand_sim::Scenario;
 use magstand_sim::replay::Trace;
+use nalgebra::{Matrix3, SymmetricEigen};
 
 use super::{Context, Effect, EffectFit, Param};
+use crate::augmented_model::MotorCurrentLaw;
+use crate::fit::{Design, LawColumn, MAX_SPEED_POWERS};
 use crate::optimize::Search;
 
 /// Motors affect the sensor unequally.
@@ -11,6 +14,172 @@ pub struct MotorAsymmetry;
 /// that must have it, for per-motor gains to be identifiable at all.
 const MIN_SPREAD: f64 = 0.01;
 const MIN_SHARE: f64 = 0.01;
+
+/// Least correlation, over the identification rows, between the calibrated law's field along
+/// its main direction and the nominal motor current for the law to stand for the current: a
+/// law that does not follow the current at all (a sensor the motors do not reach) says nothing
+/// of its shape, and the nominal motor's current is followed instead.
+const MIN_LAW_CORRELATION: f64 = 0.5;
+
+/// Points at which a calibrated law is checked to rise with speed over the speeds driven.
+const MONOTONE_CHECK_POINTS: usize = 64;
+
+/// Largest fall between neighbouring check points a calibrated law may have, as a share of
+/// its rise over the speeds driven: a polynomial's wiggle where the current is flat.
+const MONOTONE_SLACK: f64 = 0.01;
+
+/// The motor current as a fitted baseline's current law has it. The law's field is
+/// `F(r) = sum_j coef_j x_j(r)` over its columns; a motor's field is its current times one
+/// direction, so the law's shape is its field along the main direction `u` of `F` (the
+/// leading eigenvector of `sum F F^T` over the identification rows), scaled to amperes by
+/// least squares against the nominal motor current (`load * full_load_a`). None where the
+/// design has no law column, the field does not follow the current (see
+/// [`MIN_LAW_CORRELATION`]), or the law's current does not rise with speed (see
+/// [`rises_over_driven_speeds`]).
+pub(crate) fn calibrated_current_law(
+    design: &Design,
+    coef: &[[f64; 3]],
+    nominal_a: &[f64],
+    holdout: &[bool],
+) -> Option<MotorCurrentLaw> {
+    let law: Vec<usize> = (0..design.len())
+        .filter(|&j| LawColumn::parse(&design.names[j]).is_some())
+        .collect();
+    if law.is_empty() || coef.len() != design.len() {
+        return None;
+    }
+    let rows: Vec<usize> = (0..nominal_a.len()).filter(|&r| !holdout[r]).collect();
+    let field = |r: usize| -> [f64; 3] {
+        std::array::from_fn(|a| law.iter().map(|&j| coef[j][a] * design.columns[j][r]).sum())
+    };
+    let mut second = Matrix3::<f64>::zeros();
+    for &r in &rows {
+        let f = field(r);
+        for a in 0..3 {
+            for b in 0..3 {
+                second[(a, b)] += f[a] * f[b];
+            }
+        }
+    }
+    let eigen = SymmetricEigen::new(second);
+    let lead = eigen.eigenvalues.imax();
+    let u = eigen.eigenvectors.column(lead);
+    let along = |r: usize| -> f64 {
+        let f = field(r);
+        (0..3).map(|a| u[a] * f[a]).sum()
+    };
+    // Least squares of the law's current-like field on the nominal current, and their
+    // correlation (uncentred: both vanish with the motors off).
+    let (mut hi, mut ii, mut hh) = (0.0, 0.0, 0.0);
+    for &r in &rows {
+        let (h, i) = (along(r), nominal_a[r]);
+        hi += h * i;
+        ii += i * i;
+        hh += h * h;
+    }
+    let scale = hi / ii;
+    let correlation = hi / (ii * hh).sqrt();
+    if !(scale.is_finite() && scale != 0.0 && correlation.abs() >= MIN_LAW_CORRELATION) {
+        return None;
+    }
+    let a_per_unit: Vec<f64> = law
+        .iter()
+        .map(|&j| (0..3).map(|a| u[a] * coef[j][a]).sum::<f64>() / scale)
+        .collect();
+    let found = MotorCurrentLaw {
+        columns: law.iter().map(|&j| design.names[j].clone()).collect(),
+        a_per_unit,
+    };
+    (found.a_per_unit.iter().all(|a| a.is_finite())
+        && rises_over_driven_speeds(&found, design, &rows))
+    .then_some(found)
+}
+
+/// Whether a driven motor's current by `law` rises with its speed over the speeds the rows
+/// drive the motors at (each row's mean speed of its driven motors): a motor draws more
+/// current the faster it turns, so a law that does not is the noise of a field the motors
+/// barely reach, or a field that is not their currents', and no shape for a current.
+fn rises_over_driven_speeds(law: &MotorCurrentLaw, design: &Design, rows: &[usize]) -> bool {
+    let column = |name: &str| {
+        design
+            .names
+            .iter()
+            .position(|n| n == name)
+            .map(|j| &design.columns[j])
+    };
+    let (Some(driven), Some(speed)) = (column("driven"), column("speed^1")) else {
+        return false;
+    };
+    let (lo, hi) = rows
+        .iter()
+        .filter(|&&r| driven[r] > 0.0)
+        .map(|&r| speed[r] / driven[r])
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), s| {
+            (lo.min(s), hi.max(s))
+        });
+    if !(lo.is_finite() && hi > lo) {
+        return false;
+    }
+    // One driven motor's current at speed `s` (its part of each column).
+    let per = PerUnit::of(law);
+    let at = |s: f64| per.driven + per.powers_at(s);
+    let values: Vec<f64> = (0..MONOTONE_CHECK_POINTS)
+        .map(|i| at(lo + (hi - lo) * i as f64 / (MONOTONE_CHECK_POINTS - 1) as f64))
+        .collect();
+    let rise = values[values.len() - 1] - values[0];
+    rise > 0.0
+        && values
+            .windows(2)
+            .all(|w| w[1] >= w[0] - MONOTONE_SLACK * rise)
+}
+
+/// A law's amperes per unit of the driven flag, of an armed motor within its dead zone, and
+/// of each power of speed.
+struct PerUnit {
+    driven: f64,
+    armed: f64,
+    powers: [f64; MAX_SPEED_POWERS],
+}
+
+impl PerUnit {
+    fn of(law: &MotorCurrentLaw) -> PerUnit {
+        let mut per = PerUnit {
+            driven: 0.0,
+            armed: 0.0,
+            powers: [0.0; MAX_SPEED_POWERS],
+        };
+        for (name, a) in law.columns.iter().zip(&law.a_per_unit) {
+            match LawColumn::parse(name) {
+                Some(LawColumn::Driven) => per.driven += a,
+                Some(LawColumn::ArmedInDeadZone) => per.armed += a,
+                Some(LawColumn::SpeedPower(k)) => per.powers[k as usize - 1] += a,
+                None => {}
+            }
+        }
+        per
+    }
+
+    /// The powers' part at speed `s` (Horner's rule).
+    fn powers_at(&self, s: f64) -> f64 {
+        self.powers.iter().rev().fold(0.0, |acc, a| (acc + a) * s)
+    }
+}
+
+/// Motor `m`'s current at every row of `trace`: by `law` where given, else the nominal
+/// motor's. One pass over the rows (each design of a model with this term makes it).
+fn motor_current(trace: &Trace, law: Option<&MotorCurrentLaw>, m: usize) -> Vec<f64> {
+    let Some(law) = law else {
+        return trace.current_a[m].clone();
+    };
+    let per = PerUnit::of(law);
+    let (speed, driven, armed) = (&trace.speed[m], &trace.driven[m], &trace.armed[m]);
+    (0..trace.len())
+        .map(|r| {
+            let d = driven[r];
+            d * (per.driven + per.powers_at(speed[r])) + (armed[r] - d) * per.armed
+        })
+        .collect()
+}
 
 /// Per-motor gains from the fitted deviation coefficients of all groups but the last
 /// (`coef[k]` for `groups[k]`): each motor takes its group's coefficient (the last group 0),
@@ -96,18 +265,23 @@ impl Effect for MotorAsymmetry {
     ) -> Vec<(String, Vec<f64>)> {
         // One column per group of motors the recording tells apart, the last left out: the
         // deviations of all motors from their mean sum to zero.
+        // Each motor's current as the calibrated law has it where the context carries one:
+        // the nominal motor's shape at low commands may be another stand's, and a gain fitted
+        // to the wrong shape leaves a misfit that other terms (a dead zone) take up.
         let n = trace.current_a.len();
+        let law = ctx.motor_current_law.as_ref();
+        let currents: Vec<Vec<f64>> = (0..n).map(|m| motor_current(trace, law, m)).collect();
         let groups = &ctx.motor_groups;
         groups[..groups.len().saturating_sub(1)]
             .iter()
             .map(|group| {
                 let col = (0..trace.len())
                     .map(|r| {
-                        let mean = trace.current_a.iter().map(|c| c[r]).sum::<f64>() / n as f64;
+                        let mean = currents.iter().map(|c| c[r]).sum::<f64>() / n as f64;
                         group
                             .iter()
                             .filter(|&&m| m < n)
-                            .map(|&m| trace.current_a[m][r] - mean)
+                            .map(|&m| currents[m][r] - mean)
                             .sum()
                     })
                     .collect();
@@ -159,6 +333,73 @@ impl Effect for MotorAsymmetry {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A law whose field is one direction times a current `p0 + p1 s + p2 s^2 + p3 s^3`: its
+    /// amperes per unit are those powers, scaled as the nominal current (here 1.3 times that
+    /// current) has it; a sensor the current does not reach gives no law.
+    #[test]
+    fn the_calibrated_law_is_the_fields_shape_in_amperes() {
+        let p = [0.4, 2.0, -1.5, 6.0];
+        let g = [-0.35, 0.6, 0.5];
+        let rows = 400;
+        let speed: Vec<f64> = (0..rows).map(|r| (r % 37) as f64 / 36.0).collect();
+        let driven: Vec<f64> = speed
+            .iter()
+            .map(|&s| f64::from(u8::from(s > 0.1)))
+            .collect();
+        let mut design = Design::default();
+        design.push("reference", vec![1.0; rows]);
+        design.push("driven", driven.clone());
+        for k in 1..=3 {
+            let col = speed
+                .iter()
+                .zip(&driven)
+                .map(|(s, d)| d * s.powi(k))
+                .collect();
+            design.push(format!("speed^{k}"), col);
+        }
+        let current: Vec<f64> = (0..rows)
+            .map(|r| {
+                (1..design.len())
+                    .map(|j| p[j - 1] * design.columns[j][r])
+                    .sum()
+            })
+            .collect();
+        let nominal: Vec<f64> = current.iter().map(|i| 1.3 * i).collect();
+        let mut coef = vec![[12.0, -3.0, 40.0]];
+        coef.extend(p.iter().map(|pj| g.map(|ga| ga * pj)));
+        let holdout: Vec<bool> = (0..rows).map(|r| r % 5 == 0).collect();
+        let law = calibrated_current_law(&design, &coef, &nominal, &holdout).expect("a law");
+        assert_eq!(law.columns, ["driven", "speed^1", "speed^2", "speed^3"]);
+        for (a, pj) in law.a_per_unit.iter().zip(p) {
+            assert!(
+                (a - 1.3 * pj).abs() < 1e-9 * pj.abs().max(1.0),
+                "{:?} against 1.3 x {p:?}",
+                law.a_per_unit
+            );
+        }
+        let silent: Vec<[f64; 3]> = coef.iter().map(|_| [0.0; 3]).collect();
+        assert_eq!(
+            calibrated_current_law(&design, &silent, &nominal, &holdout),
+            None
+        );
+        // A law that falls with speed over the speeds driven is no motor's current, however
+        // well the nominal current follows it.
+        let falls = [0.4, 2.0, -8.0, 6.0];
+        let mut coef = vec![[12.0, -3.0, 40.0]];
+        coef.extend(falls.iter().map(|pj| g.map(|ga| ga * pj)));
+        let current: Vec<f64> = (0..rows)
+            .map(|r| {
+                (1..design.len())
+                    .map(|j| falls[j - 1] * design.columns[j][r])
+                    .sum()
+            })
+            .collect();
+        assert_eq!(
+            calibrated_current_law(&design, &coef, &current, &holdout),
+            None
+        );
+    }
 
     #[test]
     fn gains_sum_to_zero_and_reproduce_the_deviation_model() {

@@ -191,6 +191,7 @@ fn model_file(
             .iter()
             .any(|g| g.len() > 1)
             .then(|| ctx.motor_groups.clone()),
+        motor_current_law: ctx.motor_current_law.clone(),
     }
 }
 

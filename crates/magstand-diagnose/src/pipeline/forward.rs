@@ -354,6 +354,62 @@ fn replication_failure(
 }
 
 /// Runs the forward search over `effects` from the baseline `base`.
+/// Each motor's current as the model `m` calibrated its law, where the data tell that law's
+/// shape from the nominal motor current's (see [`shape_told_from_nominal`]). A per-motor term
+/// is named on the nominal current (a current shaped by the data takes up more of any misfit
+/// that follows the currents, such as a timing error's) and, once named, modelled on this one
+/// (its gains then fit the stand's own current, and no other term, a dead zone, takes up the
+/// difference).
+fn calibrated_current(
+    ctx: &Context,
+    m: &ModelFit,
+    significance: f64,
+) -> Option<crate::augmented_model::MotorCurrentLaw> {
+    crate::effects::calibrated_current_law(
+        &m.built.design,
+        &m.fitted.coef,
+        &m.built.load_a(),
+        &ctx.split.holdout,
+    )
+    .filter(|_| shape_told_from_nominal(ctx, m, significance))
+}
+
+/// Whether the model `m` fits the identification rows significantly better with its current
+/// law's columns than with the nominal motor current in their place (one column): a
+/// likelihood-ratio test at `significance`, widened for the residuals' correlation as a name's
+/// is. Where it does not (a stand whose motors barely reach the sensor in common, or whose
+/// current the nominal motor already follows), the law's shape is noise, and per-motor terms
+/// keep the nominal current.
+fn shape_told_from_nominal(ctx: &Context, m: &ModelFit, significance: f64) -> bool {
+    let design = &m.built.design;
+    let mut nominal = crate::fit::Design::default();
+    let mut law_columns = 0;
+    for (name, column) in design.names.iter().zip(&design.columns) {
+        if crate::fit::LawColumn::parse(name).is_some() {
+            law_columns += 1;
+        } else {
+            nominal.push(name.clone(), column.clone());
+        }
+    }
+    if law_columns < 2 {
+        return false;
+    }
+    nominal.push("nominal_current_a", m.built.load_a());
+    let Ok(fitted) = crate::fit::fit(
+        &nominal,
+        &ctx.rec.mag_ut,
+        Some(&m.built.fixed),
+        &m.weights,
+        &ctx.split.holdout,
+    ) else {
+        return false;
+    };
+    let fall = fitted.chi2_fit - m.fitted.chi2_fit;
+    let lr = fall / m.fitted.sd_factor.powi(2).max(1.0);
+    let parameters = 3 * (law_columns - 1);
+    lr > crate::stats::chi2_quantile(1.0 - significance, parameters as f64)
+}
+
 pub(crate) fn forward_search<'e>(
     ctx: &mut Context,
     effects: &'e [Box<dyn Effect>],
@@ -369,6 +425,8 @@ pub(crate) fn forward_search<'e>(
     let mut reports: Vec<EffectReport> = Vec::new();
     let mut stages = vec![("baseline".to_string(), base.model.fitted.residuals(y))];
     let mut current = (base.model.fitted.clone(), base.model.weights.clone());
+    // The current law of the model so far, for a per-motor term once it is named.
+    let mut calibrated = calibrated_current(ctx, &base.model, cfg.significance);
     let mut calibrating = true;
     let mut unchanged: Vec<Candidate> = Vec::new();
     while terms.len() < cfg.max_terms {
@@ -505,6 +563,9 @@ pub(crate) fn forward_search<'e>(
             p_value: tried[i].result.p_value.unwrap_or(1.0),
         });
         stages.push((format!("+ {}", open[i].name()), after));
+        if open[i].name() == "motor_asymmetry" {
+            ctx.motor_current_law = calibrated.take();
+        }
         terms.push(Term {
             effect: open[i],
             theta,
@@ -514,6 +575,9 @@ pub(crate) fn forward_search<'e>(
         // the interval at which commands act are refitted with it.
         refine(ctx, &mut terms, w);
         let m = fit_model(ctx, &terms, Some(w))?;
+        if !terms.iter().any(|t| t.effect.name() == "motor_asymmetry") {
+            calibrated = calibrated_current(ctx, &m, cfg.significance);
+        }
         current = (m.fitted, m.weights);
         rounds.push(round);
     }

@@ -92,6 +92,7 @@ pub(crate) fn diagnose_with(
         // motors-off reference less the driven motors.
         armed_current: flight.is_none() && crate::fit::arming_varies(&rec.thr),
         motor_groups: crate::effects::motor_groups(&rec.thr),
+        motor_current_law: None,
         replays: Default::default(),
     };
     let base = calibrate_baseline(&mut ctx, cfg)?;
