@@ -358,16 +358,24 @@ mod tests {
                 .collect();
             design.push(format!("speed^{k}"), col);
         }
-        let current: Vec<f64> = (0..rows)
-            .map(|r| {
-                (1..design.len())
-                    .map(|j| p[j - 1] * design.columns[j][r])
-                    .sum()
-            })
-            .collect();
-        let nominal: Vec<f64> = current.iter().map(|i| 1.3 * i).collect();
-        let mut coef = vec![[12.0, -3.0, 40.0]];
-        coef.extend(p.iter().map(|pj| g.map(|ga| ga * pj)));
+        // The current of powers `p` at every row, and the coefficients of its field along `g`
+        // (a motors-off reference first).
+        let current_of = |p: &[f64; 4]| -> Vec<f64> {
+            (0..rows)
+                .map(|r| {
+                    (1..design.len())
+                        .map(|j| p[j - 1] * design.columns[j][r])
+                        .sum()
+                })
+                .collect()
+        };
+        let coef_of = |p: &[f64; 4]| -> Vec<[f64; 3]> {
+            std::iter::once([12.0, -3.0, 40.0])
+                .chain(p.iter().map(|pj| g.map(|ga| ga * pj)))
+                .collect()
+        };
+        let nominal: Vec<f64> = current_of(&p).iter().map(|i| 1.3 * i).collect();
+        let coef = coef_of(&p);
         let holdout: Vec<bool> = (0..rows).map(|r| r % 5 == 0).collect();
         let law = calibrated_current_law(&design, &coef, &nominal, &holdout).expect("a law");
         assert_eq!(law.columns, ["driven", "speed^1", "speed^2", "speed^3"]);
@@ -386,17 +394,8 @@ mod tests {
         // A law that falls with speed over the speeds driven is no motor's current, however
         // well the nominal current follows it.
         let falls = [0.4, 2.0, -8.0, 6.0];
-        let mut coef = vec![[12.0, -3.0, 40.0]];
-        coef.extend(falls.iter().map(|pj| g.map(|ga| ga * pj)));
-        let current: Vec<f64> = (0..rows)
-            .map(|r| {
-                (1..design.len())
-                    .map(|j| falls[j - 1] * design.columns[j][r])
-                    .sum()
-            })
-            .collect();
         assert_eq!(
-            calibrated_current_law(&design, &coef, &current, &holdout),
+            calibrated_current_law(&design, &coef_of(&falls), &current_of(&falls), &holdout),
             None
         );
     }
