@@ -271,17 +271,19 @@ impl Effect for MotorAsymmetry {
         let n = trace.current_a.len();
         let law = ctx.motor_current_law.as_ref();
         let currents: Vec<Vec<f64>> = (0..n).map(|m| motor_current(trace, law, m)).collect();
+        let mean: Vec<f64> = (0..trace.len())
+            .map(|r| currents.iter().map(|c| c[r]).sum::<f64>() / n as f64)
+            .collect();
         let groups = &ctx.motor_groups;
         groups[..groups.len().saturating_sub(1)]
             .iter()
             .map(|group| {
                 let col = (0..trace.len())
                     .map(|r| {
-                        let mean = currents.iter().map(|c| c[r]).sum::<f64>() / n as f64;
                         group
                             .iter()
                             .filter(|&&m| m < n)
-                            .map(|&m| currents[m][r] - mean)
+                            .map(|&m| currents[m][r] - mean[r])
                             .sum()
                     })
                     .collect();

@@ -318,10 +318,9 @@ fn replication_failure(
             .len()
             .saturating_sub(evidence.current.coef.len());
         let parameters = 3 * columns + theta.len();
-        let lr = fall / fitted.sd_factor.powi(2).max(1.0);
         // At the significance of the other replication tests (the round's threshold,
         // corrected for the candidates tried beside it, is the gain test's).
-        let needed = crate::stats::chi2_quantile(1.0 - cfg.significance, parameters as f64);
+        let (lr, needed) = likelihood_ratio(fall, fitted.sd_factor, parameters, cfg.significance);
         if !(lr > needed) {
             return Some(format!(
                 "refused: it lowers the fit's chi-square by {fall:.1}, {lr:.1} once widened for the residuals' correlation (x {:.2} in sd), where {parameters} parameters fitted to noise would lower it by up to {needed:.1} (p = {:.2e}): its coefficients are not told from zero",
@@ -353,7 +352,6 @@ fn replication_failure(
     None
 }
 
-/// Runs the forward search over `effects` from the baseline `base`.
 /// Each motor's current as the model `m` calibrated its law, where the data tell that law's
 /// shape from the nominal motor current's (see [`shape_told_from_nominal`]). A per-motor term
 /// is named on the nominal current (a current shaped by the data takes up more of any misfit
@@ -365,13 +363,14 @@ fn calibrated_current(
     m: &ModelFit,
     significance: f64,
 ) -> Option<crate::augmented_model::MotorCurrentLaw> {
+    let nominal_a = m.built.load_a();
     crate::effects::calibrated_current_law(
         &m.built.design,
         &m.fitted.coef,
-        &m.built.load_a(),
+        &nominal_a,
         &ctx.split.holdout,
     )
-    .filter(|_| shape_told_from_nominal(ctx, m, significance))
+    .filter(|_| shape_told_from_nominal(ctx, m, nominal_a, significance))
 }
 
 /// Whether the model `m` fits the identification rows significantly better with its current
@@ -380,7 +379,12 @@ fn calibrated_current(
 /// is. Where it does not (a stand whose motors barely reach the sensor in common, or whose
 /// current the nominal motor already follows), the law's shape is noise, and per-motor terms
 /// keep the nominal current.
-fn shape_told_from_nominal(ctx: &Context, m: &ModelFit, significance: f64) -> bool {
+fn shape_told_from_nominal(
+    ctx: &Context,
+    m: &ModelFit,
+    nominal_a: Vec<f64>,
+    significance: f64,
+) -> bool {
     let design = &m.built.design;
     let mut nominal = crate::fit::Design::default();
     let mut law_columns = 0;
@@ -394,7 +398,7 @@ fn shape_told_from_nominal(ctx: &Context, m: &ModelFit, significance: f64) -> bo
     if law_columns < 2 {
         return false;
     }
-    nominal.push("nominal_current_a", m.built.load_a());
+    nominal.push("nominal_current_a", nominal_a);
     let Ok(fitted) = crate::fit::fit(
         &nominal,
         &ctx.rec.mag_ut,
@@ -404,12 +408,26 @@ fn shape_told_from_nominal(ctx: &Context, m: &ModelFit, significance: f64) -> bo
     ) else {
         return false;
     };
-    let fall = fitted.chi2_fit - m.fitted.chi2_fit;
-    let lr = fall / m.fitted.sd_factor.powi(2).max(1.0);
-    let parameters = 3 * (law_columns - 1);
-    lr > crate::stats::chi2_quantile(1.0 - significance, parameters as f64)
+    let (lr, needed) = likelihood_ratio(
+        fitted.chi2_fit - m.fitted.chi2_fit,
+        m.fitted.sd_factor,
+        3 * (law_columns - 1),
+        significance,
+    );
+    lr > needed
 }
 
+/// A fall `fall` of the identification chi-square from `parameters` more parameters as a
+/// likelihood ratio widened for the residuals' correlation (divided by the square of their
+/// long-run sd factor, at least 1), and the ratio noise reaches at `significance`.
+fn likelihood_ratio(fall: f64, sd_factor: f64, parameters: usize, significance: f64) -> (f64, f64) {
+    (
+        fall / sd_factor.powi(2).max(1.0),
+        crate::stats::chi2_quantile(1.0 - significance, parameters as f64),
+    )
+}
+
+/// Runs the forward search over `effects` from the baseline `base`.
 pub(crate) fn forward_search<'e>(
     ctx: &mut Context,
     effects: &'e [Box<dyn Effect>],
@@ -424,13 +442,13 @@ pub(crate) fn forward_search<'e>(
     let mut rounds = Vec::new();
     let mut reports: Vec<EffectReport> = Vec::new();
     let mut stages = vec![("baseline".to_string(), base.model.fitted.residuals(y))];
-    let mut current = (base.model.fitted.clone(), base.model.weights.clone());
-    // The current law of the model so far, for a per-motor term once it is named.
-    let mut calibrated = calibrated_current(ctx, &base.model, cfg.significance);
+    // The model of the terms so far (the baseline's until a term is in).
+    let mut latest: Option<ModelFit> = None;
     let mut calibrating = true;
     let mut unchanged: Vec<Candidate> = Vec::new();
     while terms.len() < cfg.max_terms {
-        let (cur_fit, w) = &current;
+        let model = latest.as_ref().unwrap_or(&base.model);
+        let (cur_fit, w) = (&model.fitted, &model.weights);
         let before = cur_fit.residuals(y);
         // Gatekeeping: the family of candidate tests is opened only when the global test
         // rejects white noise for the baseline, so a clean recording stays clean however many
@@ -563,8 +581,9 @@ pub(crate) fn forward_search<'e>(
             p_value: tried[i].result.p_value.unwrap_or(1.0),
         });
         stages.push((format!("+ {}", open[i].name()), after));
-        if open[i].name() == "motor_asymmetry" {
-            ctx.motor_current_law = calibrated.take();
+        if open[i].name() == crate::effects::MotorAsymmetry.name() {
+            // Modelled from now on on the current law of the model it was named beside.
+            ctx.motor_current_law = calibrated_current(ctx, model, cfg.significance);
         }
         terms.push(Term {
             effect: open[i],
@@ -574,11 +593,7 @@ pub(crate) fn forward_search<'e>(
         // The new term was fitted with the others' parameters held; they and the moment of
         // the interval at which commands act are refitted with it.
         refine(ctx, &mut terms, w);
-        let m = fit_model(ctx, &terms, Some(w))?;
-        if !terms.iter().any(|t| t.effect.name() == "motor_asymmetry") {
-            calibrated = calibrated_current(ctx, &m, cfg.significance);
-        }
-        current = (m.fitted, m.weights);
+        latest = Some(fit_model(ctx, &terms, Some(w))?);
         rounds.push(round);
     }
     Ok(SearchOutcome {
@@ -586,6 +601,6 @@ pub(crate) fn forward_search<'e>(
         rounds,
         reports,
         stages,
-        weights: current.1,
+        weights: latest.map_or_else(|| base.model.weights.clone(), |m| m.weights),
     })
 }
