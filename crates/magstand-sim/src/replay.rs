@@ -267,7 +267,28 @@ pub fn replay_logged(
     // voltage is the logged one or does not move with the load, and no module adds a field),
     // each motor's first-order lag toward a held target is advanced exactly in one step: the
     // substeps would only cost exponentials and give the same state to rounding.
-    let exact_in_one_step = stand_parts.is_empty() && (bat_v.is_some() || fixed_voltage);
+    if stand_parts.is_empty() && (bat_v.is_some() || fixed_voltage) {
+        let mut tr = replay_uncoupled(p, t_s, thr, command_lead, &|r| {
+            voltage_at(&SupplyState::default(), r, 0.0)
+        });
+        for r in 0..rows {
+            // The same sums in the same order as the coupled replay's.
+            let mut total_a = avionics;
+            let mut extra = Vec3::zeros();
+            for (m, current) in tr.current_a.iter().enumerate() {
+                total_a += current[r];
+                if let Some(g) = gains.get(m) {
+                    extra += g * current[r];
+                }
+            }
+            tr.total_a.push(supply_a(r, total_a));
+            tr.extra_ut.push(extra);
+        }
+        if p.logging.mag_delay_s > 0.0 {
+            tr.delay(p.logging.mag_delay_s);
+        }
+        return tr;
+    }
     let mut steps = Vec::new();
     let mut spinup = LagFactor::new(p.motors.spinup_tau_s);
     for r in 0..rows {
@@ -275,43 +296,29 @@ pub fn replay_logged(
             let dt = t_s[r] - t_s[r - 1];
             let lead_from = dt * (1.0 - command_lead.clamp(0.0, 1.0));
             let settle_s = SETTLE_TIME_CONSTANTS * p.motors.spinup_tau_s;
-            if exact_in_one_step {
-                steps.clear();
-                steps.push((0.0, dt, dt));
-            } else {
-                substeps_into(&mut steps, dt, lead_from, settle_s);
-            }
+            substeps_into(&mut steps, dt, lead_from, settle_s);
             for &(a, b, h) in &steps {
                 let voltage = voltage_at(&supply, r - 1, total_a);
-                // A substep that straddles the switch is split at it.
-                let parts = [
-                    (r - 1, (lead_from.min(b) - a).max(0.0)),
-                    (r, (b - lead_from.max(a)).max(0.0)),
-                ];
+                let parts = split_at_switch(r, a, b, lead_from);
                 // Every motor steps by the same lengths: one lag factor each, none for a part
                 // of no length (it steps no motor), and the last one kept for a length seen
                 // again (the substeps of an interval are alike).
                 let alphas = parts.map(|(_, len)| if len > 0.0 { spinup.of(len) } else { 0.0 });
                 total_a = avionics;
                 for (m, st) in motors.iter_mut().enumerate() {
-                    for (&(row, len), &alpha) in parts.iter().zip(&alphas) {
-                        if len > 0.0 {
-                            let cmd = command(m, row);
-                            if !targets[m].seen(cmd, voltage) {
-                                targets[m] =
-                                    TargetSpeed::new(&p.motors, &constants[m], cmd, voltage);
-                            }
-                            let target = &targets[m];
-                            st.step_toward(
-                                &p.motors,
-                                &constants[m],
-                                target.speed_rad_s,
-                                target.driven,
-                                alpha,
-                            );
-                            acting[m] = row;
-                        }
-                    }
+                    let motor = Motor {
+                        params: &p.motors,
+                        constants: &constants[m],
+                        command: |row| command(m, row),
+                    };
+                    motor.step(
+                        st,
+                        &mut targets[m],
+                        &mut acting[m],
+                        &parts,
+                        &alphas,
+                        voltage,
+                    );
                     total_a += st.current_a;
                 }
                 supply.step(total_a, h);
@@ -334,11 +341,18 @@ pub fn replay_logged(
             extra += part.field_ut(electrical);
         }
         for (m, st) in motors.iter().enumerate() {
-            tr.speed[m].push(st.speed_rad_s / full_speed);
-            let c = command(m, acting[m]);
-            tr.driven[m].push(if p.motors.duty(c) > 0.0 { 1.0 } else { 0.0 });
-            tr.armed[m].push(if c > 0.0 { 1.0 } else { 0.0 });
-            tr.current_a[m].push(st.current_a);
+            push_motor_row(
+                &p.motors,
+                st,
+                command(m, acting[m]),
+                full_speed,
+                [
+                    &mut tr.speed[m],
+                    &mut tr.driven[m],
+                    &mut tr.armed[m],
+                    &mut tr.current_a[m],
+                ],
+            );
             if let Some(g) = gains.get(m) {
                 extra += g * st.current_a;
             }
@@ -352,6 +366,157 @@ pub fn replay_logged(
     }
     if p.logging.mag_delay_s > 0.0 {
         tr.delay(p.logging.mag_delay_s);
+    }
+    tr
+}
+
+/// The parts of a substep: the row whose command acts in each and for how long, s.
+type Parts = [(usize, f64); 2];
+
+/// The two parts of the substep `a..b` of the interval ending at row `r` whose command switches
+/// at `lead_from` (s from the interval's start): how long row `r - 1`'s command acts in it and
+/// how long row `r`'s does. A substep that straddles the switch is split at it.
+fn split_at_switch(r: usize, a: f64, b: f64, lead_from: f64) -> Parts {
+    [
+        (r - 1, (lead_from.min(b) - a).max(0.0)),
+        (r, (b - lead_from.max(a)).max(0.0)),
+    ]
+}
+
+/// One motor as a replay steps it: its parameters and its command at a row.
+struct Motor<'a, C> {
+    params: &'a MotorParams,
+    constants: &'a MotorConstants,
+    command: C,
+}
+
+impl<C: Fn(usize) -> f64> Motor<'_, C> {
+    /// Steps `st` through `parts` (row whose command acts, length) with their lag factors
+    /// `alphas` at `voltage_v`, keeping its target speed and the row whose command acted last.
+    fn step(
+        &self,
+        st: &mut MotorState,
+        target: &mut TargetSpeed,
+        acting: &mut usize,
+        parts: &Parts,
+        alphas: &[f64; 2],
+        voltage_v: f64,
+    ) {
+        for (&(row, len), &alpha) in parts.iter().zip(alphas) {
+            if len > 0.0 {
+                let cmd = (self.command)(row);
+                if !target.seen(cmd, voltage_v) {
+                    *target = TargetSpeed::new(self.params, self.constants, cmd, voltage_v);
+                }
+                st.step_toward(
+                    self.params,
+                    self.constants,
+                    target.speed_rad_s,
+                    target.driven,
+                    alpha,
+                );
+                *acting = row;
+            }
+        }
+    }
+}
+
+/// Appends a motor's state at a row to its columns (speed, driven, armed, current), under the
+/// command `acting` that acted last.
+fn push_motor_row(
+    p: &MotorParams,
+    st: &MotorState,
+    acting: f64,
+    full_speed: f64,
+    [speed, driven, armed, current_a]: [&mut Vec<f64>; 4],
+) {
+    speed.push(st.speed_rad_s / full_speed);
+    driven.push(if p.duty(acting) > 0.0 { 1.0 } else { 0.0 });
+    armed.push(if acting > 0.0 { 1.0 } else { 0.0 });
+    current_a.push(st.current_a);
+}
+
+/// The motor columns of a replay in which nothing couples the motors (the voltage at row `r`
+/// is `voltage_v(r)` whatever they draw, and no stand module adds a field), with the supply
+/// voltage and empty `total_a` and `extra_ut` for the caller. Each motor's first-order lag
+/// toward a held target is advanced exactly in one step per part of an interval (the substeps
+/// would only cost exponentials and give the same state to rounding), and the motors, being
+/// independent, are replayed on all cores: each motor's columns are the same bits whatever
+/// the thread count.
+fn replay_uncoupled(
+    p: &Scenario,
+    t_s: &[f64],
+    thr: &[Vec<f64>],
+    command_lead: f64,
+    voltage_v: &(dyn Fn(usize) -> f64 + Sync),
+) -> Trace {
+    use rayon::prelude::*;
+    let rows = t_s.len();
+    let n_motors = p.motors.count;
+    let command = |m: usize, r: usize| thr[if thr.len() == 1 { 0 } else { m }][r];
+    let no_load_v = p.supply.no_load_voltage_v();
+    let full_speed = p.motors.steady_speed(0, 1.0, no_load_v).max(1e-9);
+    // Each interval's two parts and their lag factors, shared by the motors (the
+    // exponentials are most of a step's cost).
+    let tau_s = p.motors.spinup_tau_s;
+    let lead = command_lead.clamp(0.0, 1.0);
+    let intervals: Vec<(Parts, [f64; 2])> = (1..rows)
+        .into_par_iter()
+        .map_init(
+            || LagFactor::new(tau_s),
+            |spinup, r| {
+                let dt = t_s[r] - t_s[r - 1];
+                let parts = split_at_switch(r, 0.0, dt, dt * (1.0 - lead));
+                let alphas = parts.map(|(_, len)| if len > 0.0 { spinup.of(len) } else { 0.0 });
+                (parts, alphas)
+            },
+        )
+        .collect();
+    let per_motor: Vec<[Vec<f64>; 4]> = (0..n_motors)
+        .into_par_iter()
+        .map(|m| {
+            let motor = Motor {
+                params: &p.motors,
+                constants: &p.motors.constants(m),
+                command: |row| command(m, row),
+            };
+            let mut st = MotorState::default();
+            let (mut target, mut acting) = (TargetSpeed::NONE, 0);
+            let mut columns: [Vec<f64>; 4] = std::array::from_fn(|_| Vec::with_capacity(rows));
+            for r in 0..rows {
+                if r > 0 {
+                    let (parts, alphas) = &intervals[r - 1];
+                    motor.step(
+                        &mut st,
+                        &mut target,
+                        &mut acting,
+                        parts,
+                        alphas,
+                        voltage_v(r - 1),
+                    );
+                }
+                let [a, b, c, d] = &mut columns;
+                push_motor_row(&p.motors, &st, command(m, acting), full_speed, [a, b, c, d]);
+            }
+            columns
+        })
+        .collect();
+    let mut tr = Trace {
+        t_s: t_s.to_vec(),
+        speed: Vec::with_capacity(n_motors),
+        driven: Vec::with_capacity(n_motors),
+        armed: Vec::with_capacity(n_motors),
+        current_a: Vec::with_capacity(n_motors),
+        total_a: Vec::with_capacity(rows),
+        voltage_v: (0..rows).map(voltage_v).collect(),
+        modules: Vec::new(),
+        extra_ut: Vec::with_capacity(rows),
+    };
+    for [speed, driven, armed, current_a] in per_motor {
+        tr.speed.push(speed);
+        tr.driven.push(driven);
+        tr.armed.push(armed);
+        tr.current_a.push(current_a);
     }
     tr
 }
@@ -595,6 +760,42 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// The motors of an uncoupled replay are replayed on all cores: the trace is the same bits
+    /// on one thread and on several, with one command column per motor and a logged voltage.
+    #[test]
+    fn an_uncoupled_replay_is_the_same_bits_on_any_number_of_threads() {
+        let s = Scenario::from_toml_str(STAIR, "t")
+            .unwrap()
+            .check("t", None)
+            .unwrap();
+        let rec = simulate(&s, 4);
+        let thr: Vec<Vec<f64>> = (0..s.params().motors.count)
+            .map(|m| {
+                rec.thr[0]
+                    .iter()
+                    .enumerate()
+                    .map(|(r, c)| (c + 0.03 * ((r * (m + 1)) as f64 * 0.3).cos()).clamp(0.0, 1.0))
+                    .collect()
+            })
+            .collect();
+        let bat_v: Vec<f64> = (0..rec.len()).map(|r| 12.0 - 1e-4 * r as f64).collect();
+        let on = |threads: usize| {
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap()
+                .install(|| replay(s.params(), &rec.t_s, &thr, Some(&bat_v), 0.3))
+        };
+        let (one, two, four) = (on(1), on(2), on(4));
+        assert!(one == two, "one thread and two differ");
+        assert!(one == four, "one thread and four differ");
+        assert!(
+            one.total_a.iter().any(|a| *a > 1.0),
+            "the motors never ran: {:?}",
+            one.total_a.iter().fold(0.0f64, |m, a| m.max(*a))
+        );
     }
 
     #[test]
