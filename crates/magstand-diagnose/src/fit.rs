@@ -17,13 +17,19 @@ pub(crate) struct Design {
 impl Design {
     /// Prediction of the design with coefficients `coef` (per column, per axis).
     pub fn predict(&self, coef: &[[f64; 3]]) -> Vec<Vec3> {
+        use rayon::prelude::*;
         let n = self.columns.first().map_or(0, Vec::len);
+        let row = |r: usize| {
+            coef.iter()
+                .zip(&self.columns)
+                .fold(Vec3::zeros(), |v, (c, col)| v + Vec3::from(*c) * col[r])
+        };
+        // Rows are independent: on both cores for a long design (a search's sequential steps
+        // leave one idle), the same bits either way.
         (0..n)
-            .map(|r| {
-                coef.iter()
-                    .zip(&self.columns)
-                    .fold(Vec3::zeros(), |v, (c, col)| v + Vec3::from(*c) * col[r])
-            })
+            .into_par_iter()
+            .with_min_len(PARALLEL_FIT_ROWS / 2)
+            .map(row)
             .collect()
     }
 
@@ -49,38 +55,22 @@ impl Design {
         let k_max = speed_powers.min(MAX_SPEED_POWERS);
         let mut d = Design::default();
         d.push("reference", vec![1.0; n]);
-        // Each row's sums over the motors, motor after motor (the order of a sum per row), a
-        // column at a time so that the loops run over contiguous rows; the powers by
-        // multiplication (the bits `powi` gives for 2 and 3).
         let mut driven = vec![0.0; n];
+        let mut in_dead_zone = vec![0.0; if armed_current { n } else { 0 }];
         let mut powers: Vec<Vec<f64>> = (0..k_max).map(|_| vec![0.0; n]).collect();
-        for (speed, on) in trace.speed.iter().zip(&trace.driven) {
-            // Every column of the same length, so the loop runs without bounds checks.
-            let (speed, on, driven) = (&speed[..n], &on[..n], &mut driven[..n]);
-            for r in 0..n {
-                driven[r] += on[r];
-            }
-            match powers.as_mut_slice() {
-                [p1, p2, p3, p4, p5] => add_powers(speed, on, [p1, p2, p3, p4, p5]),
-                [p1, p2, p3, p4] => add_powers(speed, on, [p1, p2, p3, p4]),
-                [p1, p2, p3] => add_powers(speed, on, [p1, p2, p3]),
-                other => {
-                    for (k, column) in other.iter_mut().enumerate() {
-                        for (c, (&s, &d)) in column.iter_mut().zip(speed.iter().zip(on)) {
-                            *c += d * speed_power(s, k + 1);
-                        }
-                    }
-                }
-            }
-        }
+        // Rows are independent: two halves on both cores for a long trace (a search's
+        // sequential steps leave one idle), the same bits either way.
+        let half = if n >= PARALLEL_FIT_ROWS { n / 2 } else { n };
+        let (driven_a, driven_b) = driven.split_at_mut(half);
+        let (dz_a, dz_b) = in_dead_zone.split_at_mut(if armed_current { half } else { 0 });
+        let (powers_a, powers_b): (Vec<&mut [f64]>, Vec<&mut [f64]>) =
+            powers.iter_mut().map(|c| c.split_at_mut(half)).unzip();
+        rayon::join(
+            || baseline_rows(trace, 0, driven_a, dz_a, powers_a),
+            || baseline_rows(trace, half, driven_b, dz_b, powers_b),
+        );
         d.push("driven", driven);
         if armed_current {
-            let mut in_dead_zone = vec![0.0; n];
-            for (armed, on) in trace.armed.iter().zip(&trace.driven) {
-                for (c, (&a, &d)) in in_dead_zone.iter_mut().zip(armed.iter().zip(on)) {
-                    *c += a - d;
-                }
-            }
             d.push(ARMED_IN_DEAD_ZONE, in_dead_zone);
         }
         for (k, column) in powers.into_iter().enumerate() {
@@ -180,9 +170,48 @@ fn is_current_law(name: &str) -> bool {
     name != "reference" && name != "current_a"
 }
 
+/// The baseline's sums over the motors for the rows from `start` on, as long as `driven`:
+/// each row's sum motor after motor (the order of a sum per row), a column at a time so that
+/// the loops run over contiguous rows; `in_dead_zone` empty where it is not wanted.
+fn baseline_rows(
+    trace: &Trace,
+    start: usize,
+    driven: &mut [f64],
+    in_dead_zone: &mut [f64],
+    mut powers: Vec<&mut [f64]>,
+) {
+    let rows = start..start + driven.len();
+    for (speed, on) in trace.speed.iter().zip(&trace.driven) {
+        let (speed, on) = (&speed[rows.clone()], &on[rows.clone()]);
+        for (d, o) in driven.iter_mut().zip(on) {
+            *d += o;
+        }
+        match powers.as_mut_slice() {
+            [p1, p2, p3, p4, p5] => add_powers(speed, on, [p1, p2, p3, p4, p5]),
+            [p1, p2, p3, p4] => add_powers(speed, on, [p1, p2, p3, p4]),
+            [p1, p2, p3] => add_powers(speed, on, [p1, p2, p3]),
+            other => {
+                for (k, column) in other.iter_mut().enumerate() {
+                    for (c, (&s, &d)) in column.iter_mut().zip(speed.iter().zip(on)) {
+                        *c += d * speed_power(s, k + 1);
+                    }
+                }
+            }
+        }
+    }
+    if !in_dead_zone.is_empty() {
+        for (armed, on) in trace.armed.iter().zip(&trace.driven) {
+            let (armed, on) = (&armed[rows.clone()], &on[rows.clone()]);
+            for (c, (&a, &d)) in in_dead_zone.iter_mut().zip(armed.iter().zip(on)) {
+                *c += a - d;
+            }
+        }
+    }
+}
+
 /// Adds one motor's `driven * speed^k` to the columns of the first `K` powers, in one pass
 /// over the rows (the bits of [`speed_power`]).
-fn add_powers<const K: usize>(speed: &[f64], on: &[f64], columns: [&mut Vec<f64>; K]) {
+fn add_powers<const K: usize>(speed: &[f64], on: &[f64], columns: [&mut &mut [f64]; K]) {
     let n = speed.len();
     let mut columns = columns.map(|c| &mut c[..n]);
     for r in 0..n {
