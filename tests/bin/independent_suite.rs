@@ -65,6 +65,9 @@ fn print_fit_accuracy() {
     );
     println!("| method | RMSE x, y, z (µT) |\n|---|---|");
     for (name, r) in fit_accuracy(101, 102) {
-        println!("| {name} | {:.3}, {:.3}, {:.3} |", r[0], r[1], r[2]);
+        match r {
+            Ok(r) => println!("| {name} | {:.3}, {:.3}, {:.3} |", r[0], r[1], r[2]),
+            Err(why) => println!("| {name} | not determined: {why} |"),
+        }
     }
 }
