@@ -15,7 +15,7 @@ use crate::fit::{Design, Weights, fit};
 use crate::locate::{Rows, Signal, locate};
 use crate::{DiagnoseConfig, DiagnoseError};
 
-use super::design::{ModelFit, Term, fit_model};
+use super::design::{ModelFit, Term, fit_model, timing_spread};
 use super::forward::{BaselineFit, SearchOutcome};
 use super::gain::{holdout_rmse, residual_structure, standardized};
 
@@ -76,7 +76,7 @@ pub(crate) fn assemble(
     let (reports, calibrated) = separate_calibration(ctx, &terms, reports);
     let mut reports = reports;
     let mut verdict: Vec<String> = reports.iter().map(|r| r.name.clone()).collect();
-    let (rest, small_structure) = unexplained(ctx, &last, rows, cfg);
+    let (rest, small_structure) = unexplained(ctx, &terms, &last, rows, cfg);
     if let Some(rest) = rest {
         reports.push(rest);
         verdict.push(UNEXPLAINED.into());
@@ -207,11 +207,17 @@ pub const MIN_UNEXPLAINED_SHARE: f64 = 0.1;
 /// but too small to name.
 fn unexplained(
     ctx: &Context,
+    terms: &[Term],
     last: &ModelFit,
     rows: &Rows,
     cfg: &DiagnoseConfig,
 ) -> (Option<EffectReport>, Option<String>) {
-    let resid = last.fitted.residuals(&ctx.rec.mag_ut);
+    let resid = without_command_timing(
+        ctx,
+        &last.fitted.residuals(&ctx.rec.mag_ut),
+        &timing_spread(ctx, terms, &last.fitted.coef),
+        &last.weights,
+    );
     let z = standardized(&resid, &last.weights);
     let tests = residual_structure(&z, ctx.split);
     let structured: Vec<usize> = (0..3)
@@ -261,6 +267,59 @@ fn unexplained(
         p_value: white.iter().cloned().fold(1.0, f64::min),
     };
     (Some(report), None)
+}
+
+/// Fewest rows a held command must span for its switching moment to be profiled out of the
+/// residual ([`without_command_timing`]): one parameter among at least nine values (three
+/// rows of three axes) leaves most of what those rows say to the structure test. A flight's
+/// commands change at every row, and are left as they are.
+const MIN_TIMING_ROWS: usize = 3;
+
+/// The residual `resid` with each command change's unknown moment profiled out. A log only
+/// says that a command changed somewhere in the interval before the row that first shows it;
+/// the model puts every change at the calibrated fraction of its interval
+/// ([`Context::command_lead`]) and weights each row by the spread `spread` of its prediction
+/// between the interval's two ends (the change at its start or end). The moment of each
+/// change is its own: the rows after one change share its error, along that spread, and a
+/// structure test would count that shared error as structure left unexplained (plainly at
+/// low rates, where an interval is a sizeable part of a slow lag). Here each change's moment
+/// is fitted within its interval (weighted least squares along the spread over the rows until
+/// the next change, bounded to the interval) and its share taken out, where the command is
+/// held for at least [`MIN_TIMING_ROWS`] rows.
+fn without_command_timing(
+    ctx: &Context,
+    resid: &[Vec3],
+    spread: &[Vec3],
+    weights: &Weights,
+) -> Vec<Vec3> {
+    let thr = &ctx.rec.thr;
+    let rows = resid.len();
+    let changed = |r: usize| thr.iter().any(|m| m[r].to_bits() != m[r - 1].to_bits());
+    let starts: Vec<usize> = (1..rows).filter(|&r| changed(r)).collect();
+    let lead = ctx.command_lead.clamp(0.0, 1.0);
+    let mut out = resid.to_vec();
+    for (k, &start) in starts.iter().enumerate() {
+        let end = starts.get(k + 1).copied().unwrap_or(rows);
+        if end - start < MIN_TIMING_ROWS {
+            continue;
+        }
+        let (mut num, mut den) = (0.0, 0.0);
+        for r in start..end {
+            for a in 0..3 {
+                num += weights.0[r][a] * spread[r][a] * resid[r][a];
+                den += weights.0[r][a] * spread[r][a] * spread[r][a];
+            }
+        }
+        if !(den > 0.0 && num.is_finite()) {
+            continue;
+        }
+        // The moment as a fraction of the interval, from the calibrated one: within 0..1.
+        let shift = (num / den).clamp(-lead, 1.0 - lead);
+        for r in start..end {
+            out[r] -= spread[r] * shift;
+        }
+    }
+    out
 }
 
 /// Held-out RMSE of the augmented scenario's replayed simulation, calibrated like the
@@ -357,5 +416,83 @@ fn series(rec: &Recording, holdout: &[bool], stages: &[(String, Vec<Vec3>)]) -> 
                 residual_ut: rows.iter().map(|&r| resid[r].into()).collect(),
             })
             .collect(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Each held command's error along the timing spread is taken out, within its interval;
+    /// what does not lie along the spread (an offset held over the whole command) stays, and a
+    /// command held for fewer than [`MIN_TIMING_ROWS`] rows is left as it is.
+    #[test]
+    fn a_changes_moment_is_profiled_out_and_other_structure_stays() {
+        // Commands held for 10 rows, then 2 rows, then 10 rows, then 10 rows.
+        let levels = [(0.0, 10), (0.4, 10), (0.6, 2), (0.3, 10), (0.5, 10)];
+        let thr: Vec<f64> = levels
+            .iter()
+            .flat_map(|&(c, n)| std::iter::repeat_n(c, n))
+            .collect();
+        let rows = thr.len();
+        let t_s: Vec<f64> = (0..rows).map(|r| r as f64 * 0.1).collect();
+        let stand = crate::effects::TestStand::new(Recording {
+            mag_ut: vec![Vec3::zeros(); rows],
+            thr: vec![thr],
+            overall_only: true,
+            t_s,
+            ..Default::default()
+        });
+        let ctx = stand.context();
+        // A spread that decays after each change, as behind a lag.
+        let starts = [10, 20, 22, 32];
+        let spread: Vec<Vec3> = (0..rows)
+            .map(|r| match starts.iter().rev().find(|&&s| s <= r) {
+                Some(&s) => Vec3::new(1.0, -0.5, 2.0) * (-((r - s) as f64) / 3.0).exp(),
+                None => Vec3::zeros(),
+            })
+            .collect();
+        // Moments 0.3 of an interval late and early; one beyond the interval (0.5 + 0.9).
+        let shifts = [0.3, 0.2, -0.3, 0.9];
+        let offset = 0.7;
+        let resid: Vec<Vec3> = (0..rows)
+            .map(|r| {
+                let k = starts.iter().rposition(|&s| s <= r);
+                let mut e = k.map_or(Vec3::zeros(), |k| spread[r] * shifts[k]);
+                // An offset held over the last command (a play, a dead zone's step).
+                if r >= 32 {
+                    e += Vec3::new(offset, offset, offset);
+                }
+                e
+            })
+            .collect();
+        let weights = Weights(vec![[1.0; 3]; rows]);
+        let out = without_command_timing(&ctx, &resid, &spread, &weights);
+        for r in 10..20 {
+            assert!(
+                out[r].norm() < 1e-12,
+                "row {r}: {:?} left of a change 0.3 of an interval late",
+                out[r]
+            );
+        }
+        for r in 20..22 {
+            assert_eq!(out[r], resid[r], "row {r}: a 2-row command was changed");
+        }
+        for r in 22..32 {
+            assert!(out[r].norm() < 1e-12, "row {r}: {:?} left", out[r]);
+        }
+        // The last change: its moment bounded to the interval's end (0.5 past the calibrated
+        // one, though the rows' error asks for more), and the held offset stays.
+        for r in 32..rows {
+            let expected = spread[r] * (0.9 - 0.5) + Vec3::new(offset, offset, offset);
+            assert!(
+                (out[r] - expected).norm() < 1e-12,
+                "row {r}: {:?}, expected {expected:?}",
+                out[r]
+            );
+        }
+        for r in 0..10 {
+            assert_eq!(out[r], resid[r], "row {r} before any change was changed");
+        }
     }
 }

@@ -317,7 +317,7 @@ pub(crate) fn fit_model(
 /// The spread of a model's prediction between the two extreme moments at which each logged
 /// command change could have happened (start or end of its interval): it sets the timing part
 /// of every row's variance.
-fn timing_spread(ctx: &Context, terms: &[Term], coef: &[[f64; 3]]) -> Vec<Vec3> {
+pub(crate) fn timing_spread(ctx: &Context, terms: &[Term], coef: &[[f64; 3]]) -> Vec<Vec3> {
     let refs = as_refs(terms);
     let (early, late) = (
         build_with_lead(ctx, &refs, 0.0),
