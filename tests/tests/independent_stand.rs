@@ -336,7 +336,9 @@ fn the_physics_fit_follows_a_foreign_current_law_within_15_nt() {
 ///   zone for the dead zone itself. The candidate now says so and is not tested. Since the
 ///   motors armed within their dead zone draw current of their own in the model (a column of
 ///   the baseline), the candidate finds commands between the two (0.195), but its change of
-///   the prediction is significant on no axis, and it is refused for that.
+///   the prediction is significant on no axis, and it is refused for that. Since the replay
+///   reads the late magnetometer's rows at their delayed times, the fitted dead zone (0.185 ±
+///   0.022) lies within 3 sd of the statement, and is refused for that.
 #[test]
 fn a_late_magnetometer_is_reported_with_its_timing_ambiguity_and_nothing_else() {
     use magstand_tests::independent::{Mode, run_case};
@@ -352,7 +354,9 @@ fn a_late_magnetometer_is_reported_with_its_timing_ambiguity_and_nothing_else() 
         p.value
     );
     let noted = refused_with(&o.diagnosis, "dead_zone", |n| {
-        n.contains("no logged command lies between") || n.contains("on any axis")
+        n.contains("no logged command lies between")
+            || n.contains("on any axis")
+            || n.contains("do not reject the statement")
     });
     assert!(noted, "{:?}", o.diagnosis.rounds);
 }
@@ -513,7 +517,9 @@ fn an_asymmetric_motor_follows_the_calibrated_current_law() {
 /// zero: at 200 Hz the misfit the held-out blocks share runs for seconds (the residuals'
 /// long-run sd is 5.4 times the independent rows'). A name must now also lower the fit's
 /// chi-square by more than its parameters would from noise, with that correlation allowed
-/// for (a likelihood-ratio test).
+/// for (a likelihood-ratio test). Since the seventeenth session the replay reads a late
+/// magnetometer's rows at their delayed times by its own steps, and the held-out gain test no
+/// longer passes either (p = 0.46): where it does, the likelihood-ratio test must refuse it.
 #[test]
 fn a_term_whose_coefficients_are_not_told_from_zero_is_not_named() {
     use magstand_standgen::Stand;
@@ -529,12 +535,23 @@ fn a_term_whose_coefficients_are_not_told_from_zero_is_not_named() {
         "{}",
         o.diagnosis.summary()
     );
-    assert!(
-        refused_with(&o.diagnosis, "motor_asymmetry", |n| n
-            .contains("not told from zero")),
-        "{:?}",
-        o.diagnosis.rounds
-    );
+    // Every round in which its held-out gain passed refused it as not told from zero.
+    for round in &o.diagnosis.rounds {
+        for c in round
+            .candidates
+            .iter()
+            .filter(|c| c.name == "motor_asymmetry")
+        {
+            if c.p_value.is_some_and(|p| p < round.threshold) && c.improvement > Some(0.0) {
+                assert!(
+                    c.note
+                        .as_deref()
+                        .is_some_and(|n| n.contains("not told from zero")),
+                    "{c:?}"
+                );
+            }
+        }
+    }
 }
 
 /// Regression: uncertainties were taken as if every row were independent. On recordings whose

@@ -194,6 +194,27 @@ impl<'a> Logged<'a> {
     }
 }
 
+/// Whether the supply of `p` gives its no-load voltage whatever the load (a bench without
+/// source resistance).
+fn fixed_supply_voltage(p: &Scenario) -> bool {
+    matches!(
+        p.supply,
+        crate::battery::SupplyParams::Bench {
+            source_resistance_ohm: 0.0,
+            ..
+        }
+    )
+}
+
+/// Whether nothing couples the motors of `scenario` within an interval when replayed with
+/// `logged`: the voltage is the logged one or does not move with the load, and no stand
+/// module adds a field. Such a replay steps each motor on its own, and reads a late
+/// magnetometer's rows (`logging.mag_delay_s`) at their delayed times by its own steps,
+/// where any other replay interpolates between its rows ([`Trace::delay`]).
+pub fn motors_uncoupled(scenario: &Scenario, logged: Logged) -> bool {
+    (logged.bat_v.is_some() || fixed_supply_voltage(scenario)) && field_modules(scenario).is_empty()
+}
+
 /// [`replay`] following the recorded supply columns in `logged`.
 pub fn replay_logged(
     scenario: &Scenario,
@@ -251,13 +272,7 @@ pub fn replay_logged(
     // supply whose voltage does not move with the load (a bench without source resistance)
     // gives its no-load voltage, which leaves the motors' current out of the next substep's
     // dependency chain (the same bits: V - 0 * I is V).
-    let fixed_voltage = matches!(
-        p.supply,
-        crate::battery::SupplyParams::Bench {
-            source_resistance_ohm: 0.0,
-            ..
-        }
-    );
+    let fixed_voltage = fixed_supply_voltage(p);
     let voltage_at = |supply: &SupplyState, row: usize, total_a: f64| match bat_v {
         Some(v) => v[row],
         None if fixed_voltage => no_load_v,
@@ -267,8 +282,13 @@ pub fn replay_logged(
     // voltage is the logged one or does not move with the load, and no module adds a field),
     // each motor's first-order lag toward a held target is advanced exactly in one step: the
     // substeps would only cost exponentials and give the same state to rounding.
-    if stand_parts.is_empty() && (bat_v.is_some() || fixed_voltage) {
-        let mut tr = replay_uncoupled(p, t_s, thr, command_lead, &|r| {
+    if motors_uncoupled(p, logged) {
+        // A late magnetometer sees the state at its row's time less the delay: found there
+        // by the replay's own steps (below), not between rows.
+        let delay_s = p.logging.mag_delay_s;
+        let places =
+            (delay_s > 0.0).then(|| locate_increasing(t_s, t_s.iter().map(|&t| t - delay_s)));
+        let mut tr = replay_uncoupled(p, t_s, thr, command_lead, places.as_deref(), &|r| {
             voltage_at(&SupplyState::default(), r, 0.0)
         });
         for r in 0..rows {
@@ -281,11 +301,13 @@ pub fn replay_logged(
                     extra += g * current[r];
                 }
             }
-            tr.total_a.push(supply_a(r, total_a));
+            // A logged current is a measurement: between its rows, a straight line.
+            let logged_a = |at: usize| supply_a(at, total_a);
+            tr.total_a.push(match (&places, bat_a) {
+                (Some(places), Some(a)) => interpolate(a, places[r]),
+                _ => logged_a(r),
+            });
             tr.extra_ut.push(extra);
-        }
-        if p.logging.mag_delay_s > 0.0 {
-            tr.delay(p.logging.mag_delay_s);
         }
         return tr;
     }
@@ -448,6 +470,7 @@ fn replay_uncoupled(
     t_s: &[f64],
     thr: &[Vec<f64>],
     command_lead: f64,
+    places: Option<&[(usize, f64)]>,
     voltage_v: &(dyn Fn(usize) -> f64 + Sync),
 ) -> Trace {
     use rayon::prelude::*;
@@ -472,6 +495,23 @@ fn replay_uncoupled(
             },
         )
         .collect();
+    // Where the rows are read at other times (`places`, a row and the fraction of the
+    // interval after it): the parts of that interval up to each place, with the command
+    // switching where the replay switches it, and their lag factors.
+    let reads: Vec<(usize, Parts, [f64; 2])> = places
+        .unwrap_or(&[])
+        .par_iter()
+        .map(|&(k, frac)| {
+            let mut spinup = LagFactor::new(tau_s);
+            if frac <= 0.0 || k + 1 >= rows {
+                return (k, [(k, 0.0), (k, 0.0)], [0.0; 2]);
+            }
+            let dt = t_s[k + 1] - t_s[k];
+            let parts = split_at_switch(k + 1, 0.0, frac * dt, dt * (1.0 - lead));
+            let alphas = parts.map(|(_, len)| if len > 0.0 { spinup.of(len) } else { 0.0 });
+            (k, parts, alphas)
+        })
+        .collect();
     let per_motor: Vec<[Vec<f64>; 4]> = (0..n_motors)
         .into_par_iter()
         .map(|m| {
@@ -483,6 +523,8 @@ fn replay_uncoupled(
             let mut st = MotorState::default();
             let (mut target, mut acting) = (TargetSpeed::NONE, 0);
             let mut columns: [Vec<f64>; 4] = std::array::from_fn(|_| Vec::with_capacity(rows));
+            // Each row's state, where the rows are read at other times.
+            let mut states = Vec::with_capacity(if places.is_some() { rows } else { 0 });
             for r in 0..rows {
                 if r > 0 {
                     let (parts, alphas) = &intervals[r - 1];
@@ -495,6 +537,24 @@ fn replay_uncoupled(
                         voltage_v(r - 1),
                     );
                 }
+                if places.is_some() {
+                    states.push((st.clone(), acting));
+                    continue;
+                }
+                let [a, b, c, d] = &mut columns;
+                push_motor_row(&p.motors, &st, command(m, acting), full_speed, [a, b, c, d]);
+            }
+            // At each place: the state of the row before it, stepped on to it.
+            for (k, parts, alphas) in &reads {
+                let (mut st, mut acting) = states[*k].clone();
+                motor.step(
+                    &mut st,
+                    &mut target,
+                    &mut acting,
+                    parts,
+                    alphas,
+                    voltage_v(*k),
+                );
                 let [a, b, c, d] = &mut columns;
                 push_motor_row(&p.motors, &st, command(m, acting), full_speed, [a, b, c, d]);
             }
@@ -508,7 +568,14 @@ fn replay_uncoupled(
         armed: Vec::with_capacity(n_motors),
         current_a: Vec::with_capacity(n_motors),
         total_a: Vec::with_capacity(rows),
-        voltage_v: (0..rows).map(voltage_v).collect(),
+        voltage_v: match places {
+            // The supply voltage between rows: a straight line (a logged one is measured).
+            Some(places) => {
+                let v: Vec<f64> = (0..rows).map(voltage_v).collect();
+                places.iter().map(|&place| interpolate(&v, place)).collect()
+            }
+            None => (0..rows).map(voltage_v).collect(),
+        },
         modules: Vec::new(),
         extra_ut: Vec::with_capacity(rows),
     };
@@ -760,6 +827,79 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// Regression: a late magnetometer's rows were read between the replay's rows by linear
+    /// interpolation. A command change is a step at its moment within the interval (for a
+    /// fast spin-up): a row whose delayed time fell within the interval of a change got half
+    /// the step, whatever the moment, and at 25 Hz with a 0.3 s delay the diagnosis called the
+    /// misfit `unexplained`. An uncoupled replay now steps to each delayed time itself: a
+    /// 0.04 s delay at 10 Hz reads the states that a replay on a finer grid, whose rows carry
+    /// the same switching moments, holds at those times.
+    #[test]
+    fn a_late_magnetometer_reads_the_replays_own_state_at_its_delayed_time() {
+        let mut s = Scenario::from_toml_str(
+            &format!(
+                "{STAIR}\n[supply]\nkind = \"bench\"\nvoltage_v = 12.0\n[motors]\nspinup_tau_s = 0.02\n"
+            ),
+            "t",
+        )
+        .unwrap()
+        .check("t", None)
+        .unwrap()
+        .into_inner();
+        // 10 Hz rows; the command changes every 7 rows, differently per motor.
+        let rows = 200;
+        let t_s: Vec<f64> = (0..rows).map(|r| r as f64 * 0.1).collect();
+        let thr: Vec<Vec<f64>> = (0..s.motors.count)
+            .map(|m| {
+                (0..rows)
+                    .map(|r| 0.2 + 0.1 * (((r / 7) * (m + 2)) % 7) as f64)
+                    .collect()
+            })
+            .collect();
+        // The same commands on a finer grid: within each interval a row at the switching
+        // moment (0.05 s in, where the 10 Hz replay at lead 0.5 switches), acting from it on
+        // (lead 0), and a row at 0.06 s, which a 0.04 s late magnetometer reads at the next
+        // 10 Hz row.
+        let mut fine_t = Vec::new();
+        let mut fine_rows: Vec<usize> = Vec::new();
+        for r in 0..rows - 1 {
+            fine_t.extend([t_s[r], t_s[r] + 0.05, t_s[r] + 0.06]);
+            fine_rows.extend([r, r + 1, r + 1]);
+        }
+        fine_t.push(t_s[rows - 1]);
+        fine_rows.push(rows - 1);
+        let fine_thr: Vec<Vec<f64>> = thr
+            .iter()
+            .map(|c| fine_rows.iter().map(|&r| c[r]).collect())
+            .collect();
+        let fine = replay(&s, &fine_t, &fine_thr, None, 0.0);
+        s.logging.mag_delay_s = 0.04;
+        let late = replay(&s, &t_s, &thr, None, 0.5);
+        for r in 1..rows {
+            // Row r reads t_r - 0.04: the fine replay's row 3 (r - 1) + 2.
+            let f = 3 * (r - 1) + 2;
+            for m in 0..s.motors.count {
+                let (a, b) = (late.speed[m][r], fine.speed[m][f]);
+                assert!(
+                    (a - b).abs() <= 1e-9,
+                    "row {r}, motor {m}: speed {a} read late, {b} on the fine grid"
+                );
+                assert_eq!(
+                    late.driven[m][r], fine.driven[m][f],
+                    "row {r}, motor {m}: driven"
+                );
+            }
+            assert!(
+                (late.total_a[r] - fine.total_a[f]).abs() <= 1e-9,
+                "row {r}: {} A read late, {} A on the fine grid",
+                late.total_a[r],
+                fine.total_a[f]
+            );
+        }
+        // Before the first row, the first row's state.
+        assert_eq!(late.speed[0][0], fine.speed[0][0]);
     }
 
     /// The motors of an uncoupled replay are replayed on all cores: the trace is the same bits

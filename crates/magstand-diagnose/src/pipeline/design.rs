@@ -39,9 +39,10 @@ impl Built {
 }
 
 /// Replays of the recording already made, by the physics and the timing they were made with
-/// (the magnetometer's delay left out): the searches evaluate the same physics many times (an
-/// effect whose parameters the replay does not see, a delay searched over one replay, the
-/// accepted terms' physics in every round). A few of the latest are kept, within
+/// (the magnetometer's delay left out where the motors are coupled and the replay is shifted
+/// instead): the searches evaluate the same physics many times (an effect whose parameters
+/// the replay does not see, a delay searched over one coupled replay, the accepted terms'
+/// physics in every round). A few of the latest are kept, within
 /// [`REPLAY_CACHE_BYTES`].
 #[derive(Default)]
 pub(crate) struct ReplayCache(Mutex<Vec<(ReplayKey, Arc<Trace>)>>);
@@ -119,9 +120,16 @@ pub(crate) fn build_with_lead(ctx: &Context, terms: &[(&dyn Effect, &[f64])], le
         recorded_v |= e.uses_recorded_voltage(ctx);
     }
     let logged = Logged::of(ctx.rec, recorded_v, ctx.follow_recorded_current);
-    // The magnetometer's delay shifts a replay without changing it: replays are kept without
-    // it and shifted here, so a search over the delay replays once.
-    let delay_s = std::mem::take(&mut s.logging.mag_delay_s);
+    // Where the motors are coupled, the magnetometer's delay shifts a replay between its rows
+    // without changing it: replays are kept without it and shifted here, so a search over the
+    // delay replays once. Where they are not, the replay reads the delayed times by its own
+    // steps (a command change is a step at its moment, not a ramp between two rows: at a low
+    // rate a ramp misses half the step at the row the delay puts within its interval).
+    let delay_s = if magstand_sim::replay::motors_uncoupled(&s, logged) {
+        0.0
+    } else {
+        std::mem::take(&mut s.logging.mag_delay_s)
+    };
     // The replay takes the lead within 0..1: a curvature step past an end is the end's replay.
     let lead = lead.clamp(0.0, 1.0);
     let undelayed = ctx.replays.get_or_make(&s, lead, logged, || {

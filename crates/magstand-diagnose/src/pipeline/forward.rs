@@ -604,3 +604,30 @@ pub(crate) fn forward_search<'e>(
         weights: latest.map_or_else(|| base.model.weights.clone(), |m| m.weights),
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The likelihood-ratio rule: a fall of the chi-square counts as much as independent rows
+    /// would give only once divided by the square of the residuals' long-run sd factor, and is
+    /// compared with the chi-square quantile of as many parameters. Nine gains lowering the
+    /// chi-square by 30 are told from zero on independent rows (21.7 needed at 1 %), not where
+    /// the residuals run for seconds (sd factor 2: 7.5); a factor below 1 never strengthens it.
+    #[test]
+    fn a_fall_of_the_chi_square_counts_less_where_the_residuals_are_correlated() {
+        let (lr, needed) = likelihood_ratio(30.0, 1.0, 9, 0.01);
+        assert!(
+            (needed - 21.666).abs() < 0.01,
+            "chi-square 99 % quantile of 9: {needed}"
+        );
+        assert!(lr > needed, "independent rows: {lr} against {needed}");
+        let (lr, needed) = likelihood_ratio(30.0, 2.0, 9, 0.01);
+        assert!(
+            (lr - 7.5).abs() < 1e-12 && lr < needed,
+            "sd factor 2: {lr} against {needed}"
+        );
+        let (lr, _) = likelihood_ratio(30.0, 0.5, 9, 0.01);
+        assert_eq!(lr, 30.0, "an sd factor under 1 raised the ratio");
+    }
+}
