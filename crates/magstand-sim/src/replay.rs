@@ -538,7 +538,7 @@ fn replay_uncoupled(
                     );
                 }
                 if places.is_some() {
-                    states.push((st.clone(), acting));
+                    states.push((st, acting));
                     continue;
                 }
                 let [a, b, c, d] = &mut columns;
@@ -546,7 +546,7 @@ fn replay_uncoupled(
             }
             // At each place: the state of the row before it, stepped on to it.
             for (k, parts, alphas) in &reads {
-                let (mut st, mut acting) = states[*k].clone();
+                let (mut st, mut acting) = states[*k];
                 motor.step(
                     &mut st,
                     &mut target,
