@@ -521,21 +521,20 @@ fn replay_uncoupled(
                 command: |row| command(m, row),
             };
             let mut st = MotorState::default();
-            let (mut target, mut acting) = (TargetSpeed::NONE, 0);
+            let mut acting = 0;
+            let mut target = TargetSpeed::NONE;
             let mut columns: [Vec<f64>; 4] = std::array::from_fn(|_| Vec::with_capacity(rows));
             // Each row's state, where the rows are read at other times.
             let mut states = Vec::with_capacity(if places.is_some() { rows } else { 0 });
+            // The motor stepped through `parts` of the interval after row `from`.
+            let mut step_from =
+                |st: &mut MotorState, acting: &mut usize, from: usize, parts, alphas| {
+                    motor.step(st, &mut target, acting, parts, alphas, voltage_v(from));
+                };
             for r in 0..rows {
                 if r > 0 {
                     let (parts, alphas) = &intervals[r - 1];
-                    motor.step(
-                        &mut st,
-                        &mut target,
-                        &mut acting,
-                        parts,
-                        alphas,
-                        voltage_v(r - 1),
-                    );
+                    step_from(&mut st, &mut acting, r - 1, parts, alphas);
                 }
                 if places.is_some() {
                     states.push((st, acting));
@@ -547,14 +546,7 @@ fn replay_uncoupled(
             // At each place: the state of the row before it, stepped on to it.
             for (k, parts, alphas) in &reads {
                 let (mut st, mut acting) = states[*k];
-                motor.step(
-                    &mut st,
-                    &mut target,
-                    &mut acting,
-                    parts,
-                    alphas,
-                    voltage_v(*k),
-                );
+                step_from(&mut st, &mut acting, *k, parts, alphas);
                 let [a, b, c, d] = &mut columns;
                 push_motor_row(&p.motors, &st, command(m, acting), full_speed, [a, b, c, d]);
             }
