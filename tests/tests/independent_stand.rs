@@ -4,6 +4,7 @@
 //! recordings, with its confusion matrices, is
 //! `cargo run --release -p magstand-tests --bin independent-suite` (results/diagnosis-independent.md).
 use magstand_ident::{Dataset, Fit, FitConfig, InputKind};
+use magstand_standgen::Stand;
 use magstand_tests::independent::{Case, ROWS, recording, rmse_ut};
 
 fn control(log_bat_v: bool) -> Case {
@@ -42,6 +43,14 @@ fn named_param<'d>(
 }
 
 /// Whether a candidate `name` of some round was refused with a note that `says` accepts.
+/// The suite case labelled `label`, seed 1, on `stand` sampled at `rate_hz`, diagnosed
+/// without a scenario.
+fn unstated_at(stand: Stand, rate_hz: f64, label: &str) -> magstand_tests::independent::Outcome {
+    use magstand_tests::independent::{Mode, run_case_on};
+    let stand = Stand { rate_hz, ..stand };
+    run_case_on(&stand, &suite_case(label), Mode::Unstated, 1)
+}
+
 fn refused_with(d: &magstand_diagnose::Diagnosis, name: &str, says: impl Fn(&str) -> bool) -> bool {
     d.rounds
         .iter()
@@ -411,7 +420,6 @@ fn a_battery_law_unlike_the_nominal_one_does_not_raise_the_stated_dead_zone() {
 /// alike, each motor of a group taking the group's gain.
 #[test]
 fn a_motor_asymmetry_is_named_where_motors_are_commanded_in_pairs() {
-    use magstand_standgen::Stand;
     use magstand_tests::independent::{Mode, run_case_on};
     let o = run_case_on(
         &Stand::held_out(),
@@ -463,7 +471,6 @@ fn a_motor_asymmetry_is_named_where_motors_are_commanded_in_pairs() {
 /// current.)
 #[test]
 fn an_asymmetric_motor_follows_the_calibrated_current_law() {
-    use magstand_standgen::Stand;
     use magstand_tests::independent::{Mode, run_case_on};
     let stand = Stand::held_out();
     let case = suite_case("motor asymmetry");
@@ -522,13 +529,7 @@ fn an_asymmetric_motor_follows_the_calibrated_current_law() {
 /// longer passes either (p = 0.46): where it does, the likelihood-ratio test must refuse it.
 #[test]
 fn a_term_whose_coefficients_are_not_told_from_zero_is_not_named() {
-    use magstand_standgen::Stand;
-    use magstand_tests::independent::{Mode, run_case_on};
-    let stand = Stand {
-        rate_hz: 200.0,
-        ..Stand::held_out()
-    };
-    let o = run_case_on(&stand, &suite_case("time offset 0.3 s"), Mode::Unstated, 1);
+    let o = unstated_at(Stand::held_out(), 200.0, "time offset 0.3 s");
     assert!(
         o.verdict.iter().any(|n| n == "time_offset")
             && !o.verdict.iter().any(|n| n == "motor_asymmetry"),
@@ -691,13 +692,7 @@ fn a_stated_stands_slow_lag_is_followed_along_its_valley_with_the_command_lead()
 /// the residual before that test.
 #[test]
 fn a_slow_lag_at_10_hz_is_named_alone() {
-    use magstand_standgen::Stand;
-    use magstand_tests::independent::{Mode, run_case_on};
-    let stand = Stand {
-        rate_hz: 10.0,
-        ..Stand::held_out()
-    };
-    let o = run_case_on(&stand, &suite_case("current lag 0.5 s"), Mode::Unstated, 1);
+    let o = unstated_at(Stand::held_out(), 10.0, "current lag 0.5 s");
     assert_eq!(o.verdict, ["current_lag"], "{}", o.diagnosis.summary());
 }
 
@@ -707,12 +702,6 @@ fn a_slow_lag_at_10_hz_is_named_alone() {
 /// now reads the delayed times by its own steps.
 #[test]
 fn a_late_magnetometer_at_25_hz_is_named_alone() {
-    use magstand_standgen::Stand;
-    use magstand_tests::independent::{Mode, run_case_on};
-    let stand = Stand {
-        rate_hz: 25.0,
-        ..Stand::default()
-    };
-    let o = run_case_on(&stand, &suite_case("time offset 0.3 s"), Mode::Unstated, 1);
+    let o = unstated_at(Stand::default(), 25.0, "time offset 0.3 s");
     assert_eq!(o.verdict, ["time_offset"], "{}", o.diagnosis.summary());
 }

@@ -212,7 +212,8 @@ fn fixed_supply_voltage(p: &Scenario) -> bool {
 /// magnetometer's rows (`logging.mag_delay_s`) at their delayed times by its own steps,
 /// where any other replay interpolates between its rows ([`Trace::delay`]).
 pub fn motors_uncoupled(scenario: &Scenario, logged: Logged) -> bool {
-    (logged.bat_v.is_some() || fixed_supply_voltage(scenario)) && field_modules(scenario).is_empty()
+    (logged.bat_v.is_some() || fixed_supply_voltage(scenario))
+        && !scenario.module_params().iter().any(|m| m.adds_field())
 }
 
 /// [`replay`] following the recorded supply columns in `logged`.
@@ -229,7 +230,7 @@ pub fn replay_logged(
     let supply_a = |row: usize, model_a: f64| bat_a.map_or(model_a, |a| a[row]);
     let n_motors = p.motors.count;
     let rows = t_s.len();
-    let command = |m: usize, r: usize| thr[if thr.len() == 1 { 0 } else { m }][r];
+    let command = |m: usize, r: usize| motor_command(thr, m, r);
     let mut supply = SupplyState::default();
     let avionics = p.supply.avionics_current_a();
     let no_load_v = p.supply.no_load_voltage_v();
@@ -302,10 +303,9 @@ pub fn replay_logged(
                 }
             }
             // A logged current is a measurement: between its rows, a straight line.
-            let logged_a = |at: usize| supply_a(at, total_a);
             tr.total_a.push(match (&places, bat_a) {
                 (Some(places), Some(a)) => interpolate(a, places[r]),
-                _ => logged_a(r),
+                _ => supply_a(r, total_a),
             });
             tr.extra_ut.push(extra);
         }
@@ -325,7 +325,7 @@ pub fn replay_logged(
                 // Every motor steps by the same lengths: one lag factor each, none for a part
                 // of no length (it steps no motor), and the last one kept for a length seen
                 // again (the substeps of an interval are alike).
-                let alphas = parts.map(|(_, len)| if len > 0.0 { spinup.of(len) } else { 0.0 });
+                let alphas = lag_factors(&parts, &mut spinup);
                 total_a = avionics;
                 for (m, st) in motors.iter_mut().enumerate() {
                     let motor = Motor {
@@ -405,6 +405,17 @@ fn split_at_switch(r: usize, a: f64, b: f64, lead_from: f64) -> Parts {
     ]
 }
 
+/// The lag factor of each part of `parts` (none for a part of no length, which steps no
+/// motor), from `spinup`, which keeps the last one for a length seen again.
+fn lag_factors(parts: &Parts, spinup: &mut LagFactor) -> [f64; 2] {
+    parts.map(|(_, len)| if len > 0.0 { spinup.of(len) } else { 0.0 })
+}
+
+/// Motor `m`'s command at row `r` of `thr` (one column per motor, or one for all).
+fn motor_command(thr: &[Vec<f64>], m: usize, r: usize) -> f64 {
+    thr[if thr.len() == 1 { 0 } else { m }][r]
+}
+
 /// One motor as a replay steps it: its parameters and its command at a row.
 struct Motor<'a, C> {
     params: &'a MotorParams,
@@ -476,7 +487,7 @@ fn replay_uncoupled(
     use rayon::prelude::*;
     let rows = t_s.len();
     let n_motors = p.motors.count;
-    let command = |m: usize, r: usize| thr[if thr.len() == 1 { 0 } else { m }][r];
+    let command = |m: usize, r: usize| motor_command(thr, m, r);
     let no_load_v = p.supply.no_load_voltage_v();
     let full_speed = p.motors.steady_speed(0, 1.0, no_load_v).max(1e-9);
     // Each interval's two parts and their lag factors, shared by the motors (the
@@ -490,7 +501,7 @@ fn replay_uncoupled(
             |spinup, r| {
                 let dt = t_s[r] - t_s[r - 1];
                 let parts = split_at_switch(r, 0.0, dt, dt * (1.0 - lead));
-                let alphas = parts.map(|(_, len)| if len > 0.0 { spinup.of(len) } else { 0.0 });
+                let alphas = lag_factors(&parts, spinup);
                 (parts, alphas)
             },
         )
@@ -502,13 +513,13 @@ fn replay_uncoupled(
         .unwrap_or(&[])
         .par_iter()
         .map(|&(k, frac)| {
-            let mut spinup = LagFactor::new(tau_s);
+            let spinup = &mut LagFactor::new(tau_s);
             if frac <= 0.0 || k + 1 >= rows {
                 return (k, [(k, 0.0), (k, 0.0)], [0.0; 2]);
             }
             let dt = t_s[k + 1] - t_s[k];
             let parts = split_at_switch(k + 1, 0.0, frac * dt, dt * (1.0 - lead));
-            let alphas = parts.map(|(_, len)| if len > 0.0 { spinup.of(len) } else { 0.0 });
+            let alphas = lag_factors(&parts, spinup);
             (k, parts, alphas)
         })
         .collect();
@@ -754,7 +765,7 @@ mod tests {
         let mut within = 0;
         for r in 0..rec.len() {
             for m in 0..tr.armed.len() {
-                let c = rec.thr[if rec.thr.len() == 1 { 0 } else { m }][r];
+                let c = motor_command(&rec.thr, m, r);
                 let (armed, driven) = (tr.armed[m][r], tr.driven[m][r]);
                 assert_eq!(
                     armed,
