@@ -272,6 +272,104 @@ fn coarse_to_fine(n: usize, f: impl Fn(usize) -> f64 + Sync) -> Vec<f64> {
 /// Fewest grid points searched coarse to fine ([`coarse_to_fine`]).
 const COARSE_GRID_POINTS: usize = 9;
 
+/// The finite-difference step of [`newton_step`], as a fraction of a grid step.
+const NEWTON_PROBE_STEPS: f64 = 0.1;
+
+/// Farthest a [`newton_step`] moves a parameter, in grid steps.
+const NEWTON_REACH_STEPS: f64 = 2.0;
+
+/// One Newton step of `f` from `from` over all the searches together: the gradient and the
+/// Hessian from central differences at a tenth of a grid step (evaluated in parallel), the
+/// step solved by Cholesky, kept within [`NEWTON_REACH_STEPS`] grid steps and the ranges.
+/// Where parameters trade off (a slow lag's time constant and the moment within an interval at
+/// which commands act), the chi-square is a narrow diagonal valley that a search of one
+/// parameter at a time crosses in ever smaller steps; a Newton step follows it. Returns the
+/// point reached and its value where it is lower than at `from` (value `at_from`), else None
+/// (no upward curvature, or no fall).
+pub(crate) fn newton_step(
+    searches: &[Search],
+    from: &[f64],
+    at_from: f64,
+    f: impl Fn(&[f64]) -> Option<f64> + Sync,
+) -> Option<(Vec<f64>, f64)> {
+    let n = searches.len();
+    if n == 0 || from.len() != n || !at_from.is_finite() {
+        return None;
+    }
+    let eval = in_search_coordinates(searches, &f);
+    let u0: Vec<f64> = searches
+        .iter()
+        .zip(from)
+        .map(|(s, &v)| s.unit_of(v))
+        .collect();
+    let d: Vec<f64> = searches
+        .iter()
+        .map(|s| NEWTON_PROBE_STEPS * s.step())
+        .collect();
+    let shifted = |moves: &[(usize, f64)]| {
+        let mut u = u0.clone();
+        for &(i, sign) in moves {
+            u[i] += sign * d[i];
+        }
+        u
+    };
+    // Each axis either way, then each pair's four corners.
+    let mut probes: Vec<Vec<(usize, f64)>> = Vec::new();
+    for i in 0..n {
+        probes.push(vec![(i, 1.0)]);
+        probes.push(vec![(i, -1.0)]);
+    }
+    for i in 0..n {
+        for j in i + 1..n {
+            for (si, sj) in [(1.0, 1.0), (1.0, -1.0), (-1.0, 1.0), (-1.0, -1.0)] {
+                probes.push(vec![(i, si), (j, sj)]);
+            }
+        }
+    }
+    let values: Vec<f64> = probes.par_iter().map(|m| eval(&shifted(m))).collect();
+    if values.iter().any(|v| !v.is_finite()) {
+        return None;
+    }
+    let mut gradient = nalgebra::DVector::zeros(n);
+    let mut hessian = nalgebra::DMatrix::zeros(n, n);
+    for i in 0..n {
+        let (up, down) = (values[2 * i], values[2 * i + 1]);
+        gradient[i] = (up - down) / (2.0 * d[i]);
+        hessian[(i, i)] = (up - 2.0 * at_from + down) / (d[i] * d[i]);
+    }
+    let mut at = 2 * n;
+    for i in 0..n {
+        for j in i + 1..n {
+            let c = &values[at..at + 4];
+            let h = (c[0] - c[1] - c[2] + c[3]) / (4.0 * d[i] * d[j]);
+            hessian[(i, j)] = h;
+            hessian[(j, i)] = h;
+            at += 4;
+        }
+    }
+    let step = hessian.cholesky()?.solve(&(-gradient));
+    // The step scaled back as a whole (its direction kept) to the reach, then each parameter
+    // kept within its range.
+    let reach = (0..n)
+        .map(|i| step[i].abs() / (NEWTON_REACH_STEPS * searches[i].step()))
+        .fold(1.0, f64::max);
+    let u: Vec<f64> = (0..n)
+        .map(|i| {
+            let (lo, hi) = searches[i].u_range();
+            (u0[i] + step[i] / reach).clamp(lo, hi)
+        })
+        .collect();
+    let value = eval(&u);
+    (value < at_from).then(|| {
+        let theta = searches
+            .iter()
+            .zip(&u)
+            .map(|(s, &u)| s.value_at(u))
+            .collect();
+        (theta, value)
+    })
+}
+
 /// Brent's refinement of each coordinate around `best_u` (value `best`) to `precision`, then
 /// (when fine) each parameter's uncertainty from the curvature.
 fn polish(
@@ -514,6 +612,34 @@ mod tests {
             (near.theta[0] - fine.theta[0]).abs() < 1e-4,
             "{near:?} vs {fine:?}"
         );
+    }
+
+    /// A narrow diagonal valley (two parameters that trade off, 100 times better determined
+    /// across the valley than along it): one Newton step from a point on its floor, where a
+    /// search of one parameter at a time stands still, reaches the minimum; from the minimum
+    /// it finds no fall.
+    #[test]
+    fn a_newton_step_follows_a_narrow_valley_to_its_minimum() {
+        let f = |t: &[f64]| {
+            let (x, y) = (t[0], t[1]);
+            Some(((x - y) / 0.001).powi(2) + ((x + y - 1.0) / 0.1).powi(2))
+        };
+        let s = [search("x", 0.0, 1.0, false), search("y", 0.0, 1.0, false)];
+        let from = [0.4, 0.4];
+        let at_from = f(&from).unwrap();
+        // On the valley's floor each coordinate alone is at its minimum (to 1e-4).
+        for (dx, dy) in [(1e-4, 0.0), (-1e-4, 0.0), (0.0, 1e-4), (0.0, -1e-4)] {
+            assert!(f(&[0.4 + dx, 0.4 + dy]).unwrap() > at_from, "{dx} {dy}");
+        }
+        let (theta, value) = newton_step(&s, &from, at_from, f).expect("a fall");
+        assert!(
+            (theta[0] - 0.5).abs() < 1e-6 && (theta[1] - 0.5).abs() < 1e-6,
+            "{theta:?} (value {value}), not the minimum at (0.5, 0.5)"
+        );
+        assert!(newton_step(&s, &theta, value, f).is_none());
+        // A saddle has no Newton step downhill.
+        let saddle = |t: &[f64]| Some((t[0] - 0.5).powi(2) - (t[1] - 0.5).powi(2));
+        assert!(newton_step(&s, &[0.4, 0.4], saddle(&[0.4, 0.4]).unwrap(), saddle).is_none());
     }
 
     #[test]

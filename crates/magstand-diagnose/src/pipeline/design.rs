@@ -120,6 +120,19 @@ pub(crate) fn build_with_lead(ctx: &Context, terms: &[(&dyn Effect, &[f64])], le
         recorded_v |= e.uses_recorded_voltage(ctx);
     }
     let logged = Logged::of(ctx.rec, recorded_v, ctx.follow_recorded_current);
+    let field_lags: Vec<Option<f64>> = terms.iter().map(|(e, t)| e.field_lag_s(ctx, t)).collect();
+    // Behind a lag of the currents' field, the spin-up is a second lag in series with it,
+    // applied to the columns below with the field's: the replay steps each command in full at
+    // its moment. A replay that spun the motors up itself would leave a change made within a
+    // few spin-up times of the row that shows it half done at that row, and the field's lag
+    // would take the half as a step of its own and the rest as another, an interval later:
+    // the chi-square would dip where the moment lies a spin-up time before the row, a false
+    // optimum the timing search can settle in.
+    let spinup_behind_s = if field_lags.iter().any(Option::is_some) {
+        std::mem::take(&mut s.motors.spinup_tau_s)
+    } else {
+        0.0
+    };
     // Where the motors are coupled, the magnetometer's delay shifts a replay between its rows
     // without changing it: replays are kept without it and shifted here, so a search over the
     // delay replays once. Where they are not, the replay reads the delayed times by its own
@@ -149,9 +162,15 @@ pub(crate) fn build_with_lead(ctx: &Context, terms: &[(&dyn Effect, &[f64])], le
         ctx.armed_current,
     );
     let mut fixed = trace.extra_ut.clone();
-    let field_lags: Vec<Option<f64>> = terms.iter().map(|(e, t)| e.field_lag_s(ctx, t)).collect();
     for tau_s in field_lags.iter().flatten() {
-        lag_current_field(&trace.t_s, &mut design, &mut fixed, *tau_s, lead);
+        lag_current_field(
+            &trace.t_s,
+            &mut design,
+            &mut fixed,
+            spinup_behind_s,
+            *tau_s,
+            lead,
+        );
     }
     // Every term's columns, from the baseline's current law as built; a term that lags the
     // currents' field also takes the second order of a field nonlinear in the current.
@@ -165,7 +184,7 @@ pub(crate) fn build_with_lead(ctx: &Context, terms: &[(&dyn Effect, &[f64])], le
             if let Some(tau_s) = *field_lag {
                 columns.push((
                     "lagged_current_squared_a2".into(),
-                    square_behind_lag(trace, avionics_a, tau_s, lead),
+                    square_behind_lag(trace, avionics_a, spinup_behind_s, tau_s, lead),
                 ));
             }
             columns
@@ -199,16 +218,40 @@ pub(crate) fn build_with_lead(ctx: &Context, terms: &[(&dyn Effect, &[f64])], le
     }
 }
 
-/// Lags the field of the motor currents by `tau_s`: the baseline's current-law columns (all
-/// but the motors-off `reference` and a measured `current_a`) and the per-motor field the
-/// scenario fixes, each change acting from `lead` of its interval as the replay's commands do.
-fn lag_current_field(t_s: &[f64], design: &mut Design, fixed: &mut [Vec3], tau_s: f64, lead: f64) {
+/// Lags the field of the motor currents by `tau_s` behind a spin-up of `spinup_s`
+/// ([`lag_behind_spinup`]): the baseline's current-law columns (all but the motors-off
+/// `reference` and a measured `current_a`) and the per-motor field the scenario fixes, each
+/// change acting from `lead` of its interval as the replay's commands do.
+fn lag_current_field(
+    t_s: &[f64],
+    design: &mut Design,
+    fixed: &mut [Vec3],
+    spinup_s: f64,
+    tau_s: f64,
+    lead: f64,
+) {
     let mut xyz: [Vec<f64>; 3] = std::array::from_fn(|a| fixed.iter().map(|v| v[a]).collect());
     let mut columns: Vec<&mut [f64]> = design.current_law_columns_mut().collect();
     columns.extend(xyz.iter_mut().map(|c| c.as_mut_slice()));
-    crate::effects::lag_in_place(t_s, &mut columns, tau_s, lead);
+    lag_behind_spinup(t_s, &mut columns, spinup_s, tau_s, lead);
     for (r, v) in fixed.iter_mut().enumerate() {
         *v = Vec3::new(xyz[0][r], xyz[1][r], xyz[2][r]);
+    }
+}
+
+/// Lags `columns` (a replay's, each command stepped in full at its moment) by `tau_s` behind
+/// a spin-up of `spinup_s` (none where 0): the two first-order lags in series.
+fn lag_behind_spinup(
+    t_s: &[f64],
+    columns: &mut [&mut [f64]],
+    spinup_s: f64,
+    tau_s: f64,
+    lead: f64,
+) {
+    if spinup_s > 0.0 {
+        crate::effects::lag_in_place_twice(t_s, columns, spinup_s, tau_s, lead);
+    } else {
+        crate::effects::lag_in_place(t_s, columns, tau_s, lead);
     }
 }
 
@@ -218,11 +261,24 @@ fn lag_current_field(t_s: &[f64], design: &mut Design, fixed: &mut [Vec3], tau_s
 /// `k` the two differ by `k / 2` times this column: the square of the lagged motor current
 /// less the lag of its square, A² (zero while the current holds, largest behind each step).
 /// The current is the replay's (less the avionics' `avionics_a`), whose shape is the nominal
-/// law's: a second-order term needs no more.
-fn square_behind_lag(trace: &Trace, avionics_a: f64, tau_s: f64, lead: f64) -> Vec<f64> {
+/// law's: a second-order term needs no more. The lag is `tau_s` behind a spin-up of
+/// `spinup_s` ([`lag_behind_spinup`]).
+fn square_behind_lag(
+    trace: &Trace,
+    avionics_a: f64,
+    spinup_s: f64,
+    tau_s: f64,
+    lead: f64,
+) -> Vec<f64> {
     let mut current: Vec<f64> = trace.total_a.iter().map(|a| a - avionics_a).collect();
     let mut square: Vec<f64> = current.iter().map(|a| a * a).collect();
-    crate::effects::lag_in_place(&trace.t_s, &mut [&mut current, &mut square], tau_s, lead);
+    lag_behind_spinup(
+        &trace.t_s,
+        &mut [&mut current, &mut square],
+        spinup_s,
+        tau_s,
+        lead,
+    );
     current
         .iter()
         .zip(&square)

@@ -3,7 +3,7 @@
 //! offered to the next round as a new effect.
 use crate::effects::Context;
 use crate::fit::Weights;
-use crate::optimize::{Precision, Search, minimize_near, minimize_to};
+use crate::optimize::{Precision, Search, minimize_near, minimize_to, newton_step};
 
 use super::design::{Term, as_refs, chi2_of};
 
@@ -74,6 +74,54 @@ pub(crate) fn refine(ctx: &mut Context, terms: &mut [Term], weights: &Weights) {
             let from = (pass > 0).then_some(ctx.command_lead);
             ctx.command_lead = calibrate_timing_from(ctx, terms, weights, from);
             timed_at = Some(key);
+        }
+    }
+    valley_steps(ctx, terms, weights);
+}
+
+/// Most Newton steps [`valley_steps`] takes.
+const VALLEY_STEPS: usize = 3;
+
+/// Newton steps ([`newton_step`]) on the newest term's parameters and the command lead
+/// together, after the coordinate passes, while each lowers the chi-square by at least
+/// [`MEANINGFUL_CHI2_FALL`]: the two trade off where the term shapes what follows a command
+/// change (a slow lag at a low rate, whose time constant and the moment of the change within
+/// the interval form a narrow valley that neither the coordinate search nor the pattern step
+/// follows to its end).
+fn valley_steps(ctx: &mut Context, terms: &mut [Term], weights: &Weights) {
+    let Some(k) = terms.len().checked_sub(1) else {
+        return;
+    };
+    let mut searches = terms[k].effect.search(ctx);
+    if searches.is_empty() {
+        return;
+    }
+    let m = searches.len();
+    searches.push(lead_search());
+    let Some(mut value) = chi2_of(ctx, &as_refs(terms), ctx.command_lead, weights) else {
+        return;
+    };
+    for _ in 0..VALLEY_STEPS {
+        let from: Vec<f64> = terms[k]
+            .theta
+            .iter()
+            .copied()
+            .chain([ctx.command_lead])
+            .collect();
+        let chi2 = |x: &[f64]| {
+            let mut refs = as_refs(terms);
+            refs[k].1 = &x[..m];
+            chi2_of(ctx, &refs, x[m], weights)
+        };
+        let Some((x, v)) = newton_step(&searches, &from, value, chi2) else {
+            break;
+        };
+        let fall = value - v;
+        terms[k].theta = x[..m].to_vec();
+        ctx.command_lead = x[m];
+        value = v;
+        if fall < MEANINGFUL_CHI2_FALL {
+            break;
         }
     }
 }
