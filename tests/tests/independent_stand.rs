@@ -414,15 +414,15 @@ fn a_dead_zone_stated_too_low_is_named_with_the_armed_motors_current() {
 /// commands, and a dead zone above the lowest logged level hands those rows the armed
 /// motors' own coefficient, which fits them freely. A dead zone above the stated one is now
 /// named only where it changes the prediction at commands above it, where every coefficient
-/// is shared.
+/// is shared (unit test `a_higher_dead_zone_testifies_only_where_a_command_lies_above_it`).
+/// Since the battery's calibration is of second order in the voltage, the gain left to a
+/// dead zone is smaller and is refused earlier, by the halves rule.
 #[test]
 fn a_battery_law_unlike_the_nominal_one_does_not_raise_the_stated_dead_zone() {
     use magstand_tests::independent::{Mode, run_case};
     let o = run_case(&suite_case("battery sag"), Mode::Stated, 2);
     assert_eq!(o.verdict, ["battery_sag"], "{}", o.diagnosis.summary());
-    let refused = refused_with(&o.diagnosis, "dead_zone", |n| {
-        n.contains("only at rows where no motor is commanded above")
-    });
+    let refused = refused_with(&o.diagnosis, "dead_zone", |n| n.starts_with("refused"));
     assert!(refused, "{:?}", o.diagnosis.rounds);
 }
 
@@ -742,4 +742,19 @@ fn a_slow_lag_at_10_hz_on_a_stated_stand_is_named_alone_at_its_time_constant() {
         tau.value,
         o.diagnosis.summary()
     );
+}
+
+/// Regression: on a stated stand a sagging battery with `bat_v` logged got `dead_zone` (the
+/// default stand, seed 4; the hexacopter at 25 Hz) or `thermal_drift` (the default stand at
+/// 100 Hz) beside `battery_sag`. The generator's current is linear in the voltage, the nominal
+/// motor's about quadratic, and the voltage falls 15 % over the run: the calibration to first
+/// order in the voltage's change left a misfit of a few percent of the field, largest where
+/// the voltage was highest, that those effects took up. The calibration is now to second order.
+#[test]
+fn a_sagging_battery_on_a_stated_stand_is_named_alone() {
+    use magstand_tests::independent::{Mode, run_case};
+    let o = run_case(&suite_case("battery sag"), Mode::Stated, 4);
+    assert_eq!(o.verdict, ["battery_sag"], "{}", o.diagnosis.summary());
+    let o = diagnosed_at(Stand::held_out(), 25.0, "battery sag", Mode::Stated);
+    assert_eq!(o.verdict, ["battery_sag"], "{}", o.diagnosis.summary());
 }

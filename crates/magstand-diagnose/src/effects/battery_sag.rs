@@ -184,14 +184,19 @@ impl Effect for BatterySag {
         // The baseline's own current-law columns, as this model has them (lagged with the
         // currents' field where a term lags it).
         let change: Vec<f64> = change.collect();
-        law.iter()
-            .map(|(name, law)| {
-                (
-                    format!("voltage_change_x_{name}"),
-                    law.iter().zip(&change).map(|(x, d)| x * d).collect(),
-                )
-            })
-            .collect()
+        let first = law.iter().map(|(name, law)| {
+            (
+                format!("voltage_change_x_{name}"),
+                law.iter().zip(&change).map(|(x, d)| x * d).collect(),
+            )
+        });
+        let second = law.iter().map(|(name, law)| {
+            (
+                format!("voltage_change_squared_x_{name}"),
+                law.iter().zip(&change).map(|(x, d)| x * d * d).collect(),
+            )
+        });
+        first.chain(second).collect()
     }
     fn switch_on(&self, ctx: &Context, s: &mut Scenario, f: &EffectFit) -> Vec<Param> {
         let fitted = if ctx.rec.bat_v.is_none() {

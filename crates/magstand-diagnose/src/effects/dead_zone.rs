@@ -90,3 +90,45 @@ impl Effect for DeadZone {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::effects::TestStand;
+    use magstand_core::{Recording, Vec3};
+
+    /// A dead zone fitted above the stated one may only testify at rows where some motor is
+    /// commanded above it (where every coefficient is shared); one below it, or a flight's
+    /// (no armed motors' column), at any row. This rule once kept the independent generator's
+    /// battery from raising a right statement of 0.12 to 0.187; that recording is now refused
+    /// earlier, so the rule is held here.
+    #[test]
+    fn a_higher_dead_zone_testifies_only_where_a_command_lies_above_it() {
+        let commands = [0.0, 0.1, 0.15, 0.25, 0.4, 0.19, 0.3, 0.0];
+        let rows = 400;
+        let t_s: Vec<f64> = (0..rows).map(|r| r as f64 * 0.02).collect();
+        let thr: Vec<f64> = (0..rows).map(|r| commands[r / 50]).collect();
+        let stand = TestStand::new(Recording {
+            mag_ut: vec![Vec3::zeros(); rows],
+            thr: vec![thr.clone()],
+            overall_only: true,
+            t_s,
+            ..Default::default()
+        });
+        let mut ctx = stand.context();
+        let (rows_above, why) = DeadZone
+            .rows_telling_from_stated(&ctx, 0.12, 0.2)
+            .expect("a dead zone above the statement testifies at some rows only");
+        for (r, above) in rows_above.iter().enumerate() {
+            assert_eq!(*above, thr[r] > 0.2, "row {r} at command {}", thr[r]);
+        }
+        assert!(why.contains("0.200"), "{why}");
+        assert!(
+            DeadZone
+                .rows_telling_from_stated(&ctx, 0.12, 0.08)
+                .is_none()
+        );
+        ctx.armed_current = false;
+        assert!(DeadZone.rows_telling_from_stated(&ctx, 0.12, 0.2).is_none());
+    }
+}

@@ -403,7 +403,7 @@ mod tests {
     /// the design had just built. Where a slow current lag lags the currents' field, the
     /// design's law is lagged and the rebuilt one was not: the battery's columns followed a
     /// current the model no longer had. They are now the design's own law columns times the
-    /// change.
+    /// change (and times its square).
     #[test]
     fn the_battery_follows_the_law_the_model_has() {
         let t_s: Vec<f64> = (0..3000).map(|k| k as f64 * 0.02).collect();
@@ -443,13 +443,25 @@ mod tests {
         let battery_columns = lagged.term_columns[1].clone();
         assert_eq!(
             battery_columns.len(),
-            law.len(),
-            "one column per law column"
+            2 * law.len(),
+            "two columns per law column (the voltage's change and its square)"
         );
-        for ((name, law), k) in law.iter().zip(battery_columns.clone()) {
-            assert_eq!(lagged.design.names[k], format!("voltage_change_x_{name}"));
+        let first = law
+            .iter()
+            .map(|(name, law)| (format!("voltage_change_x_{name}"), law, 1));
+        let second = law
+            .iter()
+            .map(|(name, law)| (format!("voltage_change_squared_x_{name}"), law, 2));
+        for ((column, law, power), k) in first.chain(second).zip(battery_columns.clone()) {
+            let name = &column;
+            assert_eq!(&lagged.design.names[k], name);
             for r in 0..rows {
-                let expected = law[r] * ((bat_v[r] - reference_v) / reference_v);
+                let d = (bat_v[r] - reference_v) / reference_v;
+                let expected = if power == 1 {
+                    law[r] * d
+                } else {
+                    law[r] * d * d
+                };
                 assert_eq!(
                     lagged.design.columns[k][r].to_bits(),
                     expected.to_bits(),
