@@ -44,6 +44,7 @@ pub(crate) fn assemble(
         mut reports,
         stages,
         weights,
+        withdrawn,
     } = outcome;
     // Final joint model; the accepted effects switched on with its values in the augmented
     // scenario, which also gives their parameters.
@@ -112,7 +113,7 @@ pub(crate) fn assemble(
             rows: [split.fit_rows(), rec.len() - split.fit_rows()],
         },
         augmented_scenario: augmented.to_toml(),
-        warnings: small_structure.into_iter().collect(),
+        warnings: withdrawn.into_iter().chain(small_structure).collect(),
         model: Some(model),
         baseline_model: Some(baseline_model),
     })

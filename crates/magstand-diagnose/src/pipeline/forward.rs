@@ -42,6 +42,8 @@ pub(crate) struct SearchOutcome<'e> {
     pub(crate) stages: Vec<(String, Vec<Vec3>)>,
     /// The weights of the last model fitted.
     pub(crate) weights: Weights,
+    /// Why each finding withdrawn after a later one was named went.
+    pub(crate) withdrawn: Vec<String>,
 }
 
 /// A candidate's test result and, when it could be fitted, its parameters and fit.
@@ -427,6 +429,26 @@ fn likelihood_ratio(fall: f64, sd_factor: f64, parameters: usize, significance: 
     )
 }
 
+/// Why a finding whose parameters the refinement moved to the edge of their search range is
+/// refused, or None (a calibration may lie at its edge: a stand constant is reported, not
+/// named).
+fn refined_to_bound(ctx: &Context, term: &Term) -> Option<String> {
+    if calibrates(term.effect, ctx, &term.theta) {
+        return None;
+    }
+    term.effect
+        .search(ctx)
+        .iter()
+        .zip(&term.theta)
+        .find(|(search, v)| search.at_bound(**v))
+        .map(|(search, v)| {
+            format!(
+                "refused: refitted beside the other terms, its {} = {v:.4} lies at the edge of its search range [{}, {}], so the data do not determine it",
+                search.name, search.lo, search.hi
+            )
+        })
+}
+
 /// Runs the forward search over `effects` from the baseline `base`.
 pub(crate) fn forward_search<'e>(
     ctx: &mut Context,
@@ -446,6 +468,9 @@ pub(crate) fn forward_search<'e>(
     let mut latest: Option<ModelFit> = None;
     let mut calibrating = true;
     let mut unchanged: Vec<Candidate> = Vec::new();
+    // Findings whose refined parameters ran to the edge of their range: not tried again.
+    let mut indeterminate: Vec<&str> = Vec::new();
+    let mut withdrawn: Vec<String> = Vec::new();
     while terms.len() < cfg.max_terms {
         let model = latest.as_ref().unwrap_or(&base.model);
         let (cur_fit, w) = (&model.fitted, &model.weights);
@@ -468,6 +493,7 @@ pub(crate) fn forward_search<'e>(
             .iter()
             .map(|e| e.as_ref())
             .filter(|e| !terms.iter().any(|t| t.effect.name() == e.name()))
+            .filter(|e| !indeterminate.contains(&e.name()))
             .collect();
         // The stand constants nobody stated are calibrated first, in rounds of their own: a
         // calibration is part of the baseline every finding is measured against, and a round
@@ -568,7 +594,7 @@ pub(crate) fn forward_search<'e>(
             break;
         };
         // After a finding, the constants still open are calibrated again first.
-        calibrating = true;
+        let was_calibrating = std::mem::replace(&mut calibrating, true);
         let (theta, theta_sd, fitted) = tried[i].fitted.clone().expect("accepted means fitted");
         let after = fitted.residuals(y);
         reports.push(EffectReport {
@@ -581,6 +607,14 @@ pub(crate) fn forward_search<'e>(
             p_value: tried[i].result.p_value.unwrap_or(1.0),
         });
         stages.push((format!("+ {}", open[i].name()), after));
+        let before_refinement = (
+            terms
+                .iter()
+                .map(|t| (t.theta.clone(), t.theta_sd.clone()))
+                .collect::<Vec<_>>(),
+            ctx.command_lead,
+            ctx.motor_current_law.clone(),
+        );
         if open[i].name() == crate::effects::MotorAsymmetry.name() {
             // Modelled from now on on the current law of the model it was named beside.
             ctx.motor_current_law = calibrated_current(ctx, model, cfg.significance);
@@ -593,6 +627,42 @@ pub(crate) fn forward_search<'e>(
         // The new term was fitted with the others' parameters held; they and the moment of
         // the interval at which commands act are refitted with it.
         refine(ctx, &mut terms, w);
+        if let Some(why) = refined_to_bound(ctx, &terms[terms.len() - 1]) {
+            // The bound rule holds for the refined parameters too: the acceptance is undone,
+            // and the round tried again without this finding.
+            terms.pop();
+            let (kept, lead, law) = before_refinement;
+            for (t, (theta, sd)) in terms.iter_mut().zip(kept) {
+                (t.theta, t.theta_sd) = (theta, sd);
+            }
+            (ctx.command_lead, ctx.motor_current_law) = (lead, law);
+            reports.pop();
+            stages.pop();
+            let mut round = round;
+            round.accepted = None;
+            round.candidates[i].note = Some(why);
+            rounds.push(round);
+            indeterminate.push(open[i].name());
+            calibrating = was_calibrating;
+            continue;
+        }
+        // An older finding the new term leaves at the edge of its range is withdrawn (the new
+        // term explains what it took), and the rest refined again without it.
+        while let Some((j, why)) =
+            (0..terms.len() - 1).find_map(|j| refined_to_bound(ctx, &terms[j]).map(|why| (j, why)))
+        {
+            let gone = terms.remove(j);
+            reports.remove(j);
+            stages.remove(j + 1);
+            withdrawn.push(format!(
+                "{} (named in an earlier round) was withdrawn once {} was named: {}",
+                gone.effect.name(),
+                open[i].name(),
+                why.trim_start_matches("refused: ")
+            ));
+            indeterminate.push(gone.effect.name());
+            refine(ctx, &mut terms, w);
+        }
         latest = Some(fit_model(ctx, &terms, Some(w))?);
         rounds.push(round);
     }
@@ -602,6 +672,7 @@ pub(crate) fn forward_search<'e>(
         reports,
         stages,
         weights: latest.map_or_else(|| base.model.weights.clone(), |m| m.weights),
+        withdrawn,
     })
 }
 
