@@ -184,19 +184,22 @@ impl Effect for BatterySag {
         // The baseline's own current-law columns, as this model has them (lagged with the
         // currents' field where a term lags it).
         let change: Vec<f64> = change.collect();
-        let first = law.iter().map(|(name, law)| {
-            (
-                format!("voltage_change_x_{name}"),
-                law.iter().zip(&change).map(|(x, d)| x * d).collect(),
-            )
-        });
-        let second = law.iter().map(|(name, law)| {
-            (
-                format!("voltage_change_squared_x_{name}"),
-                law.iter().zip(&change).map(|(x, d)| x * d * d).collect(),
-            )
-        });
-        first.chain(second).collect()
+        let change = &change;
+        // To second order: each column times the change, and times its square.
+        [("voltage_change", 1), ("voltage_change_squared", 2)]
+            .into_iter()
+            .flat_map(|(prefix, power)| {
+                law.iter().map(move |(name, law)| {
+                    (
+                        format!("{prefix}_x_{name}"),
+                        law.iter()
+                            .zip(change)
+                            .map(|(x, d)| (0..power).fold(*x, |v, _| v * d))
+                            .collect(),
+                    )
+                })
+            })
+            .collect()
     }
     fn switch_on(&self, ctx: &Context, s: &mut Scenario, f: &EffectFit) -> Vec<Param> {
         let fitted = if ctx.rec.bat_v.is_none() {

@@ -331,7 +331,8 @@ pub(crate) fn lag_in_place(t_s: &[f64], columns: &mut [&mut [f64]], tau_s: f64, 
 /// `1 - lead` of it, then the later one): the first lag's output is not a step at either end,
 /// so lagging a column twice, row by row, would take the part of a change that the first lag
 /// had passed by a row for a step at that row's moment and the rest for another step an
-/// interval later.
+/// interval later. (With no first lag this is [`lag_in_place`] in other rounding; that one
+/// stays for a single lag, so the outputs of every other lag keep their bits.)
 pub(crate) fn lag_in_place_twice(
     t_s: &[f64],
     columns: &mut [&mut [f64]],

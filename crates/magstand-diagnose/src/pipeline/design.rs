@@ -452,9 +452,8 @@ mod tests {
         let second = law
             .iter()
             .map(|(name, law)| (format!("voltage_change_squared_x_{name}"), law, 2));
-        for ((column, law, power), k) in first.chain(second).zip(battery_columns.clone()) {
-            let name = &column;
-            assert_eq!(&lagged.design.names[k], name);
+        for ((name, law, power), k) in first.chain(second).zip(battery_columns.clone()) {
+            assert_eq!(lagged.design.names[k], name);
             for r in 0..rows {
                 let d = (bat_v[r] - reference_v) / reference_v;
                 let expected = if power == 1 {

@@ -242,15 +242,8 @@ fn replication_failure(
     let (theta, _, fitted) = c.fitted.as_ref()?;
     let located = evidence.located;
     let calibration = calibrates(effect, ctx, theta);
-    if !calibration {
-        for (search, v) in effect.search(ctx).iter().zip(theta) {
-            if search.at_bound(*v) {
-                return Some(format!(
-                    "refused: its {} = {v:.4} lies at the edge of its search range [{}, {}], so the data do not determine it",
-                    search.name, search.lo, search.hi
-                ));
-            }
-        }
+    if let Some(why) = at_edge(ctx, effect, theta) {
+        return Some(format!("refused: {why}"));
     }
     let after = fitted.residuals(&ctx.rec.mag_ut);
     let held: Vec<usize> = {
@@ -429,24 +422,31 @@ fn likelihood_ratio(fall: f64, sd_factor: f64, parameters: usize, significance: 
     )
 }
 
-/// Why a finding whose parameters the refinement moved to the edge of their search range is
-/// refused, or None (a calibration may lie at its edge: a stand constant is reported, not
-/// named).
-fn refined_to_bound(ctx: &Context, term: &Term) -> Option<String> {
-    if calibrates(term.effect, ctx, &term.theta) {
+/// Where a finding's parameter `theta` lies at the edge of its search range, that parameter
+/// and its range, as a reason the data do not determine it; None otherwise, and for a
+/// calibration (a stand constant is reported, not named, and its range is the physical one).
+/// Checked at acceptance and again on the refined parameters.
+fn at_edge(ctx: &Context, effect: &dyn Effect, theta: &[f64]) -> Option<String> {
+    if calibrates(effect, ctx, theta) {
         return None;
     }
-    term.effect
+    effect
         .search(ctx)
         .iter()
-        .zip(&term.theta)
+        .zip(theta)
         .find(|(search, v)| search.at_bound(**v))
         .map(|(search, v)| {
             format!(
-                "refused: refitted beside the other terms, its {} = {v:.4} lies at the edge of its search range [{}, {}], so the data do not determine it",
+                "its {} = {v:.4} lies at the edge of its search range [{}, {}], so the data do not determine it",
                 search.name, search.lo, search.hi
             )
         })
+}
+
+/// [`at_edge`] of an accepted term's refined parameters.
+fn refined_to_edge(ctx: &Context, term: &Term) -> Option<String> {
+    at_edge(ctx, term.effect, &term.theta)
+        .map(|why| format!("refitted beside the other terms, {why}"))
 }
 
 /// Runs the forward search over `effects` from the baseline `base`.
@@ -627,7 +627,7 @@ pub(crate) fn forward_search<'e>(
         // The new term was fitted with the others' parameters held; they and the moment of
         // the interval at which commands act are refitted with it.
         refine(ctx, &mut terms, w);
-        if let Some(why) = refined_to_bound(ctx, &terms[terms.len() - 1]) {
+        if let Some(why) = refined_to_edge(ctx, &terms[terms.len() - 1]) {
             // The bound rule holds for the refined parameters too: the acceptance is undone,
             // and the round tried again without this finding.
             terms.pop();
@@ -640,7 +640,7 @@ pub(crate) fn forward_search<'e>(
             stages.pop();
             let mut round = round;
             round.accepted = None;
-            round.candidates[i].note = Some(why);
+            round.candidates[i].note = Some(format!("refused: {why}"));
             rounds.push(round);
             indeterminate.push(open[i].name());
             calibrating = was_calibrating;
@@ -649,7 +649,7 @@ pub(crate) fn forward_search<'e>(
         // An older finding the new term leaves at the edge of its range is withdrawn (the new
         // term explains what it took), and the rest refined again without it.
         while let Some((j, why)) =
-            (0..terms.len() - 1).find_map(|j| refined_to_bound(ctx, &terms[j]).map(|why| (j, why)))
+            (0..terms.len() - 1).find_map(|j| refined_to_edge(ctx, &terms[j]).map(|why| (j, why)))
         {
             let gone = terms.remove(j);
             reports.remove(j);
@@ -658,7 +658,7 @@ pub(crate) fn forward_search<'e>(
                 "{} (named in an earlier round) was withdrawn once {} was named: {}",
                 gone.effect.name(),
                 open[i].name(),
-                why.trim_start_matches("refused: ")
+                why
             ));
             indeterminate.push(gone.effect.name());
             refine(ctx, &mut terms, w);
