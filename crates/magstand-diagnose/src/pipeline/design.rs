@@ -12,6 +12,7 @@ use crate::effects::{Context, Effect};
 use crate::fit::{Design, Fitted, VarianceModel, Weights, fit};
 
 /// An effect in the model with its nonlinear parameters.
+#[derive(Clone)]
 pub(crate) struct Term<'e> {
     pub(crate) effect: &'e dyn Effect,
     pub(crate) theta: Vec<f64>,

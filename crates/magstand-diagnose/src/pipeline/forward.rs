@@ -449,6 +449,17 @@ fn refined_to_edge(ctx: &Context, term: &Term) -> Option<String> {
         .map(|why| format!("refitted beside the other terms, {why}"))
 }
 
+/// What [`forward_search`] restores where a finding's acceptance is undone.
+struct Snapshot<'e> {
+    terms: Vec<Term<'e>>,
+    reports: Vec<EffectReport>,
+    stages: Vec<(String, Vec<Vec3>)>,
+    withdrawn: usize,
+    indeterminate: usize,
+    command_lead: f64,
+    motor_current_law: Option<crate::augmented_model::MotorCurrentLaw>,
+}
+
 /// Runs the forward search over `effects` from the baseline `base`.
 pub(crate) fn forward_search<'e>(
     ctx: &mut Context,
@@ -607,14 +618,16 @@ pub(crate) fn forward_search<'e>(
             p_value: tried[i].result.p_value.unwrap_or(1.0),
         });
         stages.push((format!("+ {}", open[i].name()), after));
-        let before_refinement = (
-            terms
-                .iter()
-                .map(|t| (t.theta.clone(), t.theta_sd.clone()))
-                .collect::<Vec<_>>(),
-            ctx.command_lead,
-            ctx.motor_current_law.clone(),
-        );
+        // The model as it was before this finding, for undoing its acceptance.
+        let before_acceptance = Snapshot {
+            terms: terms.clone(),
+            reports: reports[..reports.len() - 1].to_vec(),
+            stages: stages.clone(),
+            withdrawn: withdrawn.len(),
+            indeterminate: indeterminate.len(),
+            command_lead: ctx.command_lead,
+            motor_current_law: ctx.motor_current_law.clone(),
+        };
         if open[i].name() == crate::effects::MotorAsymmetry.name() {
             // Modelled from now on on the current law of the model it was named beside.
             ctx.motor_current_law = calibrated_current(ctx, model, cfg.significance);
@@ -627,30 +640,23 @@ pub(crate) fn forward_search<'e>(
         // The new term was fitted with the others' parameters held; they and the moment of
         // the interval at which commands act are refitted with it.
         refine(ctx, &mut terms, w);
-        if let Some(why) = refined_to_edge(ctx, &terms[terms.len() - 1]) {
-            // The bound rule holds for the refined parameters too: the acceptance is undone,
-            // and the round tried again without this finding.
-            terms.pop();
-            let (kept, lead, law) = before_refinement;
-            for (t, (theta, sd)) in terms.iter_mut().zip(kept) {
-                (t.theta, t.theta_sd) = (theta, sd);
+        // The bound rule holds for refined parameters too, after every refinement: an older
+        // finding the new term leaves at the edge of its range is withdrawn (the new term
+        // explains what it took) and the rest refined again without it; where the new term
+        // itself ends at an edge, its acceptance is undone (with any withdrawal it caused)
+        // and the round tried again without it.
+        let mut refused = None;
+        loop {
+            let newest = terms.len() - 1;
+            if let Some(why) = refined_to_edge(ctx, &terms[newest]) {
+                refused = Some(why);
+                break;
             }
-            (ctx.command_lead, ctx.motor_current_law) = (lead, law);
-            reports.pop();
-            stages.pop();
-            let mut round = round;
-            round.accepted = None;
-            round.candidates[i].note = Some(format!("refused: {why}"));
-            rounds.push(round);
-            indeterminate.push(open[i].name());
-            calibrating = was_calibrating;
-            continue;
-        }
-        // An older finding the new term leaves at the edge of its range is withdrawn (the new
-        // term explains what it took), and the rest refined again without it.
-        while let Some((j, why)) =
-            (0..terms.len() - 1).find_map(|j| refined_to_edge(ctx, &terms[j]).map(|why| (j, why)))
-        {
+            let Some((j, why)) =
+                (0..newest).find_map(|j| refined_to_edge(ctx, &terms[j]).map(|why| (j, why)))
+            else {
+                break;
+            };
             let gone = terms.remove(j);
             reports.remove(j);
             stages.remove(j + 1);
@@ -662,6 +668,20 @@ pub(crate) fn forward_search<'e>(
             ));
             indeterminate.push(gone.effect.name());
             refine(ctx, &mut terms, w);
+        }
+        if let Some(why) = refused {
+            let s = before_acceptance;
+            (terms, reports, stages) = (s.terms, s.reports, s.stages);
+            withdrawn.truncate(s.withdrawn);
+            indeterminate.truncate(s.indeterminate);
+            (ctx.command_lead, ctx.motor_current_law) = (s.command_lead, s.motor_current_law);
+            let mut round = round;
+            round.accepted = None;
+            round.candidates[i].note = Some(format!("refused: {why}"));
+            rounds.push(round);
+            indeterminate.push(open[i].name());
+            calibrating = was_calibrating;
+            continue;
         }
         latest = Some(fit_model(ctx, &terms, Some(w))?);
         rounds.push(round);
