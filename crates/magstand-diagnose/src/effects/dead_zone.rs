@@ -38,6 +38,10 @@ impl Effect for DeadZone {
     fn stand_constant(&self, ctx: &Context) -> Option<(&'static str, f64)> {
         Some(("motors.dead_zone", ctx.nominal.motors.dead_zone))
     }
+    fn has_a_basin_per_interval(&self) -> bool {
+        // The chi-square is flat between two logged command levels and steps at each.
+        true
+    }
     fn inseparable_from_stated(&self, ctx: &Context, stated: f64, fitted: f64) -> Option<String> {
         // A dead zone is which commands drive the motors. Two of them differ in the rows
         // whose command lies between them (driven under one, not the other); where none

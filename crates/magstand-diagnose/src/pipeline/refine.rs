@@ -12,7 +12,8 @@ const REFINE_PASSES: usize = 2;
 
 /// Refits the nonlinear parameters of all accepted terms and the command lead together, by
 /// coordinate search: each term's parameters with the others held, then the lead,
-/// [`REFINE_PASSES`] times; the first pass over each one's whole search range, the later
+/// [`REFINE_PASSES`] times; the first pass over the whole search range of the lead and of the
+/// older terms whose chi-square has a basin per interval of the data (a dead zone), the later
 /// ones within a grid step of what the pass before found.
 ///
 /// A search whose objective is the one it was last run on (the same other parameters and
@@ -56,6 +57,11 @@ pub(crate) fn refine(ctx: &mut Context, terms: &mut [Term], weights: &Weights) {
             // basin: it is coarse, and always refined in the next pass. The newest term and
             // the lead, which the new term moves most, are searched finely throughout.
             let coarse = pass == 0 && k + 1 < terms.len();
+            if coarse && !terms[k].effect.has_a_basin_per_interval() {
+                // One basin: the near search of the next pass finds where the new term moved
+                // its optimum, and a search of the whole range here would only cost replays.
+                continue;
+            }
             let found = if coarse {
                 minimize_to(&searches, Precision::Coarse, chi2)
             } else {
