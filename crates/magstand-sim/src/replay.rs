@@ -523,6 +523,8 @@ fn replay_uncoupled(
             (k, parts, alphas)
         })
         .collect();
+    // The voltage at each row, once for all motors.
+    let volts: Vec<f64> = (0..rows).map(voltage_v).collect();
     let per_motor: Vec<[Vec<f64>; 4]> = (0..n_motors)
         .into_par_iter()
         .map(|m| {
@@ -535,31 +537,30 @@ fn replay_uncoupled(
             let mut acting = 0;
             let mut target = TargetSpeed::NONE;
             let mut columns: [Vec<f64>; 4] = std::array::from_fn(|_| Vec::with_capacity(rows));
-            // Each row's state, where the rows are read at other times.
-            let mut states = Vec::with_capacity(if places.is_some() { rows } else { 0 });
             // The motor stepped through `parts` of the interval after row `from`.
             let mut step_from =
                 |st: &mut MotorState, acting: &mut usize, from: usize, parts, alphas| {
-                    motor.step(st, &mut target, acting, parts, alphas, voltage_v(from));
+                    motor.step(st, &mut target, acting, parts, alphas, volts[from]);
                 };
+            // The places still to read, in order: their rows never decrease.
+            let mut unread = reads.iter().peekable();
             for r in 0..rows {
                 if r > 0 {
                     let (parts, alphas) = &intervals[r - 1];
                     step_from(&mut st, &mut acting, r - 1, parts, alphas);
                 }
-                if places.is_some() {
-                    states.push((st, acting));
+                if places.is_none() {
+                    let [a, b, c, d] = &mut columns;
+                    push_motor_row(&p.motors, &st, command(m, acting), full_speed, [a, b, c, d]);
                     continue;
                 }
-                let [a, b, c, d] = &mut columns;
-                push_motor_row(&p.motors, &st, command(m, acting), full_speed, [a, b, c, d]);
-            }
-            // At each place: the state of the row before it, stepped on to it.
-            for (k, parts, alphas) in &reads {
-                let (mut st, mut acting) = states[*k];
-                step_from(&mut st, &mut acting, *k, parts, alphas);
-                let [a, b, c, d] = &mut columns;
-                push_motor_row(&p.motors, &st, command(m, acting), full_speed, [a, b, c, d]);
+                // At each place after this row: its state, stepped on to the place.
+                while let Some((_, parts, alphas)) = unread.next_if(|(k, ..)| *k == r) {
+                    let (mut st, mut acting) = (st, acting);
+                    step_from(&mut st, &mut acting, r, parts, alphas);
+                    let [a, b, c, d] = &mut columns;
+                    push_motor_row(&p.motors, &st, command(m, acting), full_speed, [a, b, c, d]);
+                }
             }
             columns
         })
@@ -573,11 +574,11 @@ fn replay_uncoupled(
         total_a: Vec::with_capacity(rows),
         voltage_v: match places {
             // The supply voltage between rows: a straight line (a logged one is measured).
-            Some(places) => {
-                let v: Vec<f64> = (0..rows).map(voltage_v).collect();
-                places.iter().map(|&place| interpolate(&v, place)).collect()
-            }
-            None => (0..rows).map(voltage_v).collect(),
+            Some(places) => places
+                .iter()
+                .map(|&place| interpolate(&volts, place))
+                .collect(),
+            None => volts,
         },
         modules: Vec::new(),
         extra_ut: Vec::with_capacity(rows),
