@@ -292,23 +292,29 @@ pub fn replay_logged(
         let mut tr = replay_uncoupled(p, t_s, thr, command_lead, places.as_deref(), &|r| {
             voltage_at(&SupplyState::default(), r, 0.0)
         });
-        for r in 0..rows {
-            // The same sums in the same order as the coupled replay's.
-            let mut total_a = avionics;
-            let mut extra = Vec3::zeros();
-            for (m, current) in tr.current_a.iter().enumerate() {
-                total_a += current[r];
-                if let Some(g) = gains.get(m) {
-                    extra += g * current[r];
+        // Each row on its own, on all cores (the rows' sums are the same bits in any split).
+        use rayon::prelude::*;
+        let current_a = &tr.current_a;
+        (tr.total_a, tr.extra_ut) = (0..rows)
+            .into_par_iter()
+            .map(|r| {
+                // The same sums in the same order as the coupled replay's.
+                let mut total_a = avionics;
+                let mut extra = Vec3::zeros();
+                for (m, current) in current_a.iter().enumerate() {
+                    total_a += current[r];
+                    if let Some(g) = gains.get(m) {
+                        extra += g * current[r];
+                    }
                 }
-            }
-            // A logged current is a measurement: between its rows, a straight line.
-            tr.total_a.push(match (&places, bat_a) {
-                (Some(places), Some(a)) => interpolate(a, places[r]),
-                _ => supply_a(r, total_a),
-            });
-            tr.extra_ut.push(extra);
-        }
+                // A logged current is a measurement: between its rows, a straight line.
+                let total_a = match (&places, bat_a) {
+                    (Some(places), Some(a)) => interpolate(a, places[r]),
+                    _ => supply_a(r, total_a),
+                };
+                (total_a, extra)
+            })
+            .unzip();
         return tr;
     }
     let mut steps = Vec::new();
