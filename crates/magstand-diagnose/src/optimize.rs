@@ -126,6 +126,28 @@ pub(crate) fn minimize_near(
     from: Option<&[f64]>,
     f: impl Fn(&[f64]) -> Option<f64> + Sync,
 ) -> Option<Optimum> {
+    minimize_near_or_whole(searches, from, false, f)
+}
+
+/// [`minimize_near`] for a search whose objective may have moved its optimum to another
+/// basin (a finding whose misfit a newer term took over runs towards the edge of its range):
+/// where the refinement from `from` ends at the end of its bracket inside the range, the whole
+/// range is searched too and the better of the two kept.
+pub(crate) fn minimize_near_or_beyond(
+    searches: &[Search],
+    from: &[f64],
+    f: impl Fn(&[f64]) -> Option<f64> + Sync,
+) -> Option<Optimum> {
+    minimize_near_or_whole(searches, Some(from), true, f)
+}
+
+/// [`minimize_near`], and, with `beyond`, [`minimize_near_or_beyond`].
+fn minimize_near_or_whole(
+    searches: &[Search],
+    from: Option<&[f64]>,
+    beyond: bool,
+    f: impl Fn(&[f64]) -> Option<f64> + Sync,
+) -> Option<Optimum> {
     let Some(theta) = from.filter(|t| t.len() == searches.len()) else {
         return minimize(searches, f);
     };
@@ -142,16 +164,36 @@ pub(crate) fn minimize_near(
     if !value.is_finite() {
         return minimize(searches, &f);
     }
-    polish(searches, start, value, &eval, Precision::Fine)
+    let near = polish(searches, start.clone(), value, &eval, Precision::Fine)?;
+    let left_basin = beyond
+        && searches
+            .iter()
+            .zip(&start)
+            .zip(&near.theta)
+            .any(|((s, &u0), &v)| {
+                let (u, h) = (s.unit_of(v), s.step());
+                (u - u0).abs() >= (1.0 - BRACKET_END_STEPS) * h && !s.at_bound(v)
+            });
+    if !left_basin {
+        return Some(near);
+    }
+    match minimize(searches, &f) {
+        Some(whole) if whole.value < near.value => Some(whole),
+        _ => Some(near),
+    }
 }
+
+/// How near the end of its bracket (a grid step either way), as a fraction of a grid step, a
+/// refinement from a nearby optimum ends where the optimum lies beyond it: Brent's method
+/// closes on an end to within three times [`REFINE_TOLERANCE_STEPS`].
+const BRACKET_END_STEPS: f64 = 0.02;
 
 /// How far a search refines the best point of its grid.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) enum Precision {
-    /// To [`REFINE_TOLERANCE_STEPS`] of a grid step, each coordinate twice where there are
-    /// several, with each parameter's uncertainty.
+    /// To [`REFINE_TOLERANCE_STEPS`] of a grid step, with each parameter's uncertainty.
     Fine,
-    /// To [`COARSE_TOLERANCE_STEPS`], each coordinate once, without uncertainties: where a
+    /// To [`COARSE_TOLERANCE_STEPS`], without uncertainties: where a
     /// fine search from the point found follows (a refinement's first pass, which only has to
     /// find the basin).
     Coarse,
@@ -379,46 +421,78 @@ fn polish(
     eval: &(impl Fn(&[f64]) -> f64 + Sync),
     precision: Precision,
 ) -> Option<Optimum> {
-    // Refinement by Brent's method, coordinate by coordinate.
-    let (passes, tolerance_steps) = match precision {
-        Precision::Fine if searches.len() > 1 => (2, REFINE_TOLERANCE_STEPS),
-        Precision::Fine => (1, REFINE_TOLERANCE_STEPS),
-        Precision::Coarse => (1, COARSE_TOLERANCE_STEPS),
+    // Refinement by Brent's method, each coordinate once: where parameters trade off, the
+    // coordinate passes of the refinement after an acceptance (and its pattern and Newton
+    // steps) follow the coupling; a candidate's search only has to rank and test it, and a
+    // second pass over a battery's two parameters cost a round a tenth of a second.
+    let tolerance_steps = match precision {
+        Precision::Fine => REFINE_TOLERANCE_STEPS,
+        Precision::Coarse => COARSE_TOLERANCE_STEPS,
     };
-    for _ in 0..passes {
-        for k in 0..searches.len() {
-            let (ulo, uhi) = searches[k].u_range();
-            let h = searches[k].step();
-            let (a, b) = ((best_u[k] - h).max(ulo), (best_u[k] + h).min(uhi));
-            let at = |x: f64, base: &[f64]| {
-                let mut u = base.to_vec();
-                u[k] = x;
-                eval(&u)
-            };
-            // A best point at an end of the range whose value rises just inside it: the
-            // minimum of the (unimodal) bracket lies within that distance of the end, which
-            // `Search::at_bound` calls the bound, so Brent's steps towards it (all of its
-            // evaluations, each a replay) would not change what is reported.
-            let inside = BOUND_PROBE_STEPS * h;
-            let end = if best_u[k] <= ulo {
-                Some(ulo + inside)
-            } else if best_u[k] >= uhi {
-                Some(uhi - inside)
-            } else {
-                None
-            };
-            if let Some(x) = end {
-                let fx = at(x, &best_u);
-                if fx >= best {
-                    continue;
-                }
+    // Coordinate `k` refined from `base` (value `at_base`): the point and value where lower.
+    let along = |k: usize, base: &[f64], at_base: f64| -> Option<(f64, f64)> {
+        let (ulo, uhi) = searches[k].u_range();
+        let h = searches[k].step();
+        let (a, b) = ((base[k] - h).max(ulo), (base[k] + h).min(uhi));
+        let at = |x: f64| {
+            let mut u = base.to_vec();
+            u[k] = x;
+            eval(&u)
+        };
+        // A best point at an end of the range whose value rises just inside it: the
+        // minimum of the (unimodal) bracket lies within that distance of the end, which
+        // `Search::at_bound` calls the bound, so Brent's steps towards it (all of its
+        // evaluations, each a replay) would not change what is reported.
+        let inside = BOUND_PROBE_STEPS * h;
+        let end = if base[k] <= ulo {
+            Some(ulo + inside)
+        } else if base[k] >= uhi {
+            Some(uhi - inside)
+        } else {
+            None
+        };
+        if end.is_some_and(|x| at(x) >= at_base) {
+            return None;
+        }
+        brent(a, b, tolerance_steps * h, at).filter(|&(_, fx)| fx < at_base)
+    };
+    if searches.len() == 1 {
+        if let Some((x, fx)) = along(0, &best_u, best) {
+            (best_u[0], best) = (x, fx);
+        }
+    } else {
+        // Several: each coordinate from the same point on its own core (Brent's steps are
+        // sequential, and a round's other candidates are often done by then), then all the
+        // moves together where that is lower still; else the best single move.
+        let moves: Vec<Option<(f64, f64)>> = (0..searches.len())
+            .into_par_iter()
+            .map(|k| along(k, &best_u, best))
+            .collect();
+        let mut joint = best_u.clone();
+        for (k, m) in moves.iter().enumerate() {
+            if let Some((x, _)) = m {
+                joint[k] = *x;
             }
-            let Some((x, fx)) = brent(a, b, tolerance_steps * h, |x| at(x, &best_u)) else {
-                continue;
+        }
+        let single = moves
+            .iter()
+            .enumerate()
+            .filter_map(|(k, m)| m.map(|(x, fx)| (k, x, fx)))
+            .fold(None, |b: Option<(usize, f64, f64)>, m| match b {
+                Some(b) if b.2 <= m.2 => Some(b),
+                _ => Some(m),
+            });
+        if let Some((k, x, fx)) = single {
+            let at_joint = if moves.iter().filter(|m| m.is_some()).count() > 1 {
+                eval(&joint)
+            } else {
+                f64::INFINITY
             };
-            if fx < best {
-                best = fx;
+            if at_joint < fx {
+                (best_u, best) = (joint, at_joint);
+            } else {
                 best_u[k] = x;
+                best = fx;
             }
         }
     }
@@ -511,6 +585,36 @@ mod tests {
         })
         .unwrap();
         assert!((o.theta[0] - 0.37).abs() < 1e-4, "{:?}", o.theta);
+    }
+
+    /// A search whose optimum moved far from where it was (a finding whose misfit a newer term
+    /// took over): the refinement near the old optimum ends at its bracket, a grid step away;
+    /// searched for beyond, the whole range finds it.
+    #[test]
+    fn a_search_near_an_optimum_that_moved_away_looks_beyond_its_bracket() {
+        let f = |t: &[f64]| Some(((t[0] - 0.9) / 0.02).powi(2));
+        let s = [search("x", 0.0, 1.0, false)];
+        let near = minimize_near(&s, Some(&[0.3]), f).unwrap();
+        let step = 1.0 / 8.0;
+        assert!(
+            (near.theta[0] - (0.3 + step)).abs() < 0.01 * step,
+            "the near search ended at {:?}, not at its bracket's end",
+            near.theta
+        );
+        let beyond = minimize_near_or_beyond(&s, &[0.3], f).unwrap();
+        assert!((beyond.theta[0] - 0.9).abs() < 1e-4, "{:?}", beyond.theta);
+        // Where the optimum lies within the bracket, nothing more is searched.
+        use std::sync::atomic::{AtomicUsize, Ordering};
+        let calls = AtomicUsize::new(0);
+        let counted = |t: &[f64]| {
+            calls.fetch_add(1, Ordering::Relaxed);
+            f(t)
+        };
+        minimize_near(&s, Some(&[0.85]), counted).unwrap();
+        let near_calls = calls.swap(0, Ordering::Relaxed);
+        let o = minimize_near_or_beyond(&s, &[0.85], counted).unwrap();
+        assert!((o.theta[0] - 0.9).abs() < 1e-4, "{:?}", o.theta);
+        assert_eq!(calls.load(Ordering::Relaxed), near_calls);
     }
 
     #[test]

@@ -341,11 +341,12 @@ pub(crate) fn fit_model(
 ) -> Result<ModelFit, DiagnoseError> {
     let y = &ctx.rec.mag_ut;
     let built = build(ctx, &as_refs(terms));
-    let singular = |e: magstand_ident::least_squares::SolveError| DiagnoseError::Singular {
+    use magstand_ident::least_squares::SolveError;
+    let singular = |e: SolveError| DiagnoseError::Singular {
         origin: ctx.rec_origin.clone(),
         message: match e {
-            magstand_ident::least_squares::SolveError::NoData => "no rows to fit".into(),
-            magstand_ident::least_squares::SolveError::Singular { column, .. } => format!(
+            SolveError::NoData => "no rows to fit".into(),
+            SolveError::Singular { column, .. } => format!(
                 "regressor `{}` is not determined: the recording needs motors off and at least \
                  four distinct throttle levels",
                 built.design.names.get(column).map_or("?", String::as_str)
@@ -365,8 +366,25 @@ pub(crate) fn fit_model(
     let q = &built.load;
     let var = VarianceModel::fit(&first.residuals(y), q, &ctx.split.holdout);
     let w = var.weights(q, &timing_spread(ctx, terms, &first.coef));
-    let fitted =
-        fit(&built.design, y, Some(&built.fixed), &w, &ctx.split.holdout).map_err(singular)?;
+    // Weights from the model's own residuals can leave a term's columns too little weight to
+    // be told apart (a battery's voltage columns once a dead zone is calibrated below every
+    // command: a hexacopter at 200 Hz): the model then keeps the weights it was searched with.
+    let (fitted, w) = match fit(&built.design, y, Some(&built.fixed), &w, &ctx.split.holdout) {
+        Ok(fitted) => (fitted, w),
+        Err(SolveError::Singular { .. }) => {
+            let searched = weights.unwrap_or(&unit).clone();
+            let fitted = fit(
+                &built.design,
+                y,
+                Some(&built.fixed),
+                &searched,
+                &ctx.split.holdout,
+            )
+            .map_err(singular)?;
+            (fitted, searched)
+        }
+        Err(e) => return Err(singular(e)),
+    };
     // What a model file promises for a new recording is the error on rows the fit did not
     // see, so its noise law comes from the held-out rows (the weights above must not).
     let skip_identification: Vec<bool> = ctx.split.holdout.iter().map(|h| !h).collect();

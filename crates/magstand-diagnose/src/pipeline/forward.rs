@@ -449,6 +449,37 @@ fn refined_to_edge(ctx: &Context, term: &Term) -> Option<String> {
         .map(|why| format!("refitted beside the other terms, {why}"))
 }
 
+/// The held-out RMSE before and after the newest of `terms` (its report) and the residual
+/// after it (its stage), measured on the model as it stands: with the other terms at their
+/// refined parameters, without it and with it. Left as they were where either cannot be
+/// fitted.
+fn restate_gain(
+    ctx: &Context,
+    terms: &[Term],
+    w: &Weights,
+    report: Option<&mut EffectReport>,
+    stage: Option<&mut (String, Vec<Vec3>)>,
+) {
+    let (Some(report), Some(stage)) = (report, stage) else {
+        return;
+    };
+    let refs = as_refs(terms);
+    let Some((_, older)) = refs.split_last() else {
+        return;
+    };
+    let y = &ctx.rec.mag_ut;
+    let (Some(without), Some(with)) = (
+        fitted_with(ctx, older, ctx.command_lead, w),
+        fitted_with(ctx, &refs, ctx.command_lead, w),
+    ) else {
+        return;
+    };
+    let after = with.residuals(y);
+    report.holdout_rmse_before_ut = holdout_rmse(&without.residuals(y), &ctx.split.holdout);
+    report.holdout_rmse_after_ut = holdout_rmse(&after, &ctx.split.holdout);
+    stage.1 = after;
+}
+
 /// What [`forward_search`] restores where a finding's acceptance is undone.
 struct Snapshot<'e> {
     terms: Vec<Term<'e>>,
@@ -682,6 +713,11 @@ pub(crate) fn forward_search<'e>(
             indeterminate.push(open[i].name());
             calibrating = was_calibrating;
             continue;
+        }
+        if withdrawn.len() > before_acceptance.withdrawn {
+            // The new finding's report measured its gain beside a finding since withdrawn:
+            // measured again on the model as it now stands, with and without it.
+            restate_gain(ctx, &terms, w, reports.last_mut(), stages.last_mut());
         }
         latest = Some(fit_model(ctx, &terms, Some(w))?);
         rounds.push(round);

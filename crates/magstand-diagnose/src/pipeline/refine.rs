@@ -3,7 +3,9 @@
 //! offered to the next round as a new effect.
 use crate::effects::Context;
 use crate::fit::Weights;
-use crate::optimize::{Precision, Search, minimize_near, minimize_to, newton_step};
+use crate::optimize::{
+    Precision, Search, minimize_near, minimize_near_or_beyond, minimize_to, newton_step,
+};
 
 use super::design::{Term, as_refs, chi2_of};
 
@@ -26,6 +28,8 @@ pub(crate) fn refine(ctx: &mut Context, terms: &mut [Term], weights: &Weights) {
         *last = Some(objective_key(ctx, terms, terms.len() - 1));
     }
     let mut timed_at = None;
+    // The older terms the first pass left to the second.
+    let mut unsearched = vec![false; terms.len()];
     let mut last_start: Option<Vec<f64>> = None;
     for pass in 0..REFINE_PASSES + 1 {
         if pass == REFINE_PASSES {
@@ -59,11 +63,16 @@ pub(crate) fn refine(ctx: &mut Context, terms: &mut [Term], weights: &Weights) {
             let coarse = pass == 0 && k + 1 < terms.len();
             if coarse && !terms[k].effect.has_a_basin_per_interval() {
                 // One basin: the near search of the next pass finds where the new term moved
-                // its optimum, and a search of the whole range here would only cost replays.
+                // its optimum, and a search of the whole range here would only cost replays
+                // (unless that search runs to the end of its bracket: the new term took over
+                // what this one explained, and it runs towards the edge of its range).
+                unsearched[k] = true;
                 continue;
             }
             let found = if coarse {
                 minimize_to(&searches, Precision::Coarse, chi2)
+            } else if std::mem::take(&mut unsearched[k]) {
+                minimize_near_or_beyond(&searches, &terms[k].theta, chi2)
             } else {
                 let from = (pass > 0).then_some(terms[k].theta.as_slice());
                 minimize_near(&searches, from, chi2)
