@@ -15,8 +15,8 @@ const REFINE_PASSES: usize = 2;
 /// Refits the nonlinear parameters of all accepted terms and the command lead together, by
 /// coordinate search: each term's parameters with the others held, then the lead,
 /// [`REFINE_PASSES`] times; the first pass over the whole search range of the lead and of the
-/// older terms whose chi-square has a basin per interval of the data (a dead zone), the later
-/// ones within a grid step of what the pass before found.
+/// older terms whose chi-square has a basin per interval of the data (a dead zone, a delay),
+/// the later ones within a grid step of what the pass before found.
 ///
 /// A search whose objective is the one it was last run on (the same other parameters and
 /// lead, bit for bit) is not run again: it would find the same optimum, and each of its grid
@@ -54,9 +54,9 @@ pub(crate) fn refine(ctx: &mut Context, terms: &mut [Term], weights: &Weights) {
                 refs[k].1 = theta;
                 chi2_of(ctx, &refs, ctx.command_lead, weights)
             };
-            // The first pass searches each term over its whole range (a new term can move
-            // another's optimum to another basin: a dead zone between two logged command
-            // levels); the second refines what the first found, the others having moved by
+            // The first pass searches a term with a basin per interval over its whole range
+            // (a new term can move its optimum to another basin: a dead zone between two
+            // logged command levels); the second refines what the first found, the others having moved by
             // their own refinement since. An older term's first search only has to find that
             // basin: it is coarse, and always refined in the next pass. The newest term and
             // the lead, which the new term moves most, are searched finely throughout.
