@@ -637,6 +637,16 @@ pub(crate) fn forward_search<'e>(
         };
         // After a finding, the constants still open are calibrated again first.
         let was_calibrating = std::mem::replace(&mut calibrating, true);
+        // The model as it was before this finding, for undoing its acceptance.
+        let before_acceptance = Snapshot {
+            terms: terms.clone(),
+            reports: reports.clone(),
+            stages: stages.clone(),
+            withdrawn: withdrawn.len(),
+            indeterminate: indeterminate.len(),
+            command_lead: ctx.command_lead,
+            motor_current_law: ctx.motor_current_law.clone(),
+        };
         let (theta, theta_sd, fitted) = tried[i].fitted.clone().expect("accepted means fitted");
         let after = fitted.residuals(y);
         reports.push(EffectReport {
@@ -649,16 +659,6 @@ pub(crate) fn forward_search<'e>(
             p_value: tried[i].result.p_value.unwrap_or(1.0),
         });
         stages.push((format!("+ {}", open[i].name()), after));
-        // The model as it was before this finding, for undoing its acceptance.
-        let before_acceptance = Snapshot {
-            terms: terms.clone(),
-            reports: reports[..reports.len() - 1].to_vec(),
-            stages: stages.clone(),
-            withdrawn: withdrawn.len(),
-            indeterminate: indeterminate.len(),
-            command_lead: ctx.command_lead,
-            motor_current_law: ctx.motor_current_law.clone(),
-        };
         if open[i].name() == crate::effects::MotorAsymmetry.name() {
             // Modelled from now on on the current law of the model it was named beside.
             ctx.motor_current_law = calibrated_current(ctx, model, cfg.significance);
