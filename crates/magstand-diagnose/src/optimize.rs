@@ -456,44 +456,38 @@ fn polish(
         }
         brent(a, b, tolerance_steps * h, at).filter(|&(_, fx)| fx < at_base)
     };
-    if searches.len() == 1 {
-        if let Some((x, fx)) = along(0, &best_u, best) {
-            (best_u[0], best) = (x, fx);
+    // Each coordinate from the same point, on its own core where there are several (Brent's
+    // steps are sequential, and a round's other candidates are often done by then), then all
+    // the moves together where that is lower still; else the best single move.
+    let moves: Vec<Option<(f64, f64)>> = (0..searches.len())
+        .into_par_iter()
+        .map(|k| along(k, &best_u, best))
+        .collect();
+    let mut joint = best_u.clone();
+    for (k, m) in moves.iter().enumerate() {
+        if let Some((x, _)) = m {
+            joint[k] = *x;
         }
-    } else {
-        // Several: each coordinate from the same point on its own core (Brent's steps are
-        // sequential, and a round's other candidates are often done by then), then all the
-        // moves together where that is lower still; else the best single move.
-        let moves: Vec<Option<(f64, f64)>> = (0..searches.len())
-            .into_par_iter()
-            .map(|k| along(k, &best_u, best))
-            .collect();
-        let mut joint = best_u.clone();
-        for (k, m) in moves.iter().enumerate() {
-            if let Some((x, _)) = m {
-                joint[k] = *x;
-            }
-        }
-        let single = moves
-            .iter()
-            .enumerate()
-            .filter_map(|(k, m)| m.map(|(x, fx)| (k, x, fx)))
-            .fold(None, |b: Option<(usize, f64, f64)>, m| match b {
-                Some(b) if b.2 <= m.2 => Some(b),
-                _ => Some(m),
-            });
-        if let Some((k, x, fx)) = single {
-            let at_joint = if moves.iter().filter(|m| m.is_some()).count() > 1 {
-                eval(&joint)
-            } else {
-                f64::INFINITY
-            };
-            if at_joint < fx {
-                (best_u, best) = (joint, at_joint);
-            } else {
-                best_u[k] = x;
-                best = fx;
-            }
+    }
+    let single = moves
+        .iter()
+        .enumerate()
+        .filter_map(|(k, m)| m.map(|(x, fx)| (k, x, fx)))
+        .fold(None, |b: Option<(usize, f64, f64)>, m| match b {
+            Some(b) if b.2 <= m.2 => Some(b),
+            _ => Some(m),
+        });
+    if let Some((k, x, fx)) = single {
+        let at_joint = if moves.iter().filter(|m| m.is_some()).count() > 1 {
+            eval(&joint)
+        } else {
+            f64::INFINITY
+        };
+        if at_joint < fx {
+            (best_u, best) = (joint, at_joint);
+        } else {
+            best_u[k] = x;
+            best = fx;
         }
     }
     let theta = searches

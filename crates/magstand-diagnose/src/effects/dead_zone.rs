@@ -39,7 +39,8 @@ impl Effect for DeadZone {
         Some(("motors.dead_zone", ctx.nominal.motors.dead_zone))
     }
     fn has_a_basin_per_interval(&self) -> bool {
-        // The chi-square is flat between two logged command levels and steps at each.
+        // At each logged command level a motor switches between driven and not: the
+        // chi-square turns there, with a basin between each two levels.
         true
     }
     fn inseparable_from_stated(&self, ctx: &Context, stated: f64, fitted: f64) -> Option<String> {

@@ -217,9 +217,8 @@ pub trait Effect: Sync + Send {
     /// Whether the chi-square over this effect's parameters has a basin per interval of the
     /// data rather than one over its range (a dead zone: one between each two logged command
     /// levels; a delay: one per sample interval), so that a later term can move its optimum
-    /// to another basin. A refinement
-    /// searches such an effect over its whole range again after each new term, any other only
-    /// near where it was.
+    /// to another basin. A refinement searches such an effect over its whole range again after
+    /// each new term, any other only near where it was.
     fn has_a_basin_per_interval(&self) -> bool {
         false
     }

@@ -354,14 +354,9 @@ pub(crate) fn fit_model(
         },
     };
     let unit = Weights(vec![[1.0; 3]; y.len()]);
-    let first = fit(
-        &built.design,
-        y,
-        None,
-        weights.unwrap_or(&unit),
-        &ctx.split.holdout,
-    )
-    .map_err(singular)?;
+    // The weights the model's parameters were searched with.
+    let searched = weights.unwrap_or(&unit);
+    let first = fit(&built.design, y, None, searched, &ctx.split.holdout).map_err(singular)?;
     // The load as this model's physics has it (a delay or a lag moves it too).
     let q = &built.load;
     let var = VarianceModel::fit(&first.residuals(y), q, &ctx.split.holdout);
@@ -372,16 +367,15 @@ pub(crate) fn fit_model(
     let (fitted, w) = match fit(&built.design, y, Some(&built.fixed), &w, &ctx.split.holdout) {
         Ok(fitted) => (fitted, w),
         Err(SolveError::Singular { .. }) => {
-            let searched = weights.unwrap_or(&unit).clone();
             let fitted = fit(
                 &built.design,
                 y,
                 Some(&built.fixed),
-                &searched,
+                searched,
                 &ctx.split.holdout,
             )
             .map_err(singular)?;
-            (fitted, searched)
+            (fitted, searched.clone())
         }
         Err(e) => return Err(singular(e)),
     };

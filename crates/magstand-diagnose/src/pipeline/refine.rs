@@ -28,8 +28,6 @@ pub(crate) fn refine(ctx: &mut Context, terms: &mut [Term], weights: &Weights) {
         *last = Some(objective_key(ctx, terms, terms.len() - 1));
     }
     let mut timed_at = None;
-    // The older terms the first pass left to the second.
-    let mut unsearched = vec![false; terms.len()];
     let mut last_start: Option<Vec<f64>> = None;
     for pass in 0..REFINE_PASSES + 1 {
         if pass == REFINE_PASSES {
@@ -54,24 +52,25 @@ pub(crate) fn refine(ctx: &mut Context, terms: &mut [Term], weights: &Weights) {
                 refs[k].1 = theta;
                 chi2_of(ctx, &refs, ctx.command_lead, weights)
             };
-            // The first pass searches a term with a basin per interval over its whole range
-            // (a new term can move its optimum to another basin: a dead zone between two
-            // logged command levels); the second refines what the first found, the others having moved by
-            // their own refinement since. An older term's first search only has to find that
-            // basin: it is coarse, and always refined in the next pass. The newest term and
-            // the lead, which the new term moves most, are searched finely throughout.
-            let coarse = pass == 0 && k + 1 < terms.len();
-            if coarse && !terms[k].effect.has_a_basin_per_interval() {
-                // One basin: the near search of the next pass finds where the new term moved
-                // its optimum, and a search of the whole range here would only cost replays
-                // (unless that search runs to the end of its bracket: the new term took over
-                // what this one explained, and it runs towards the edge of its range).
-                unsearched[k] = true;
+            // The first pass searches an older term with a basin per interval over its whole
+            // range (a new term can move its optimum to another basin: a dead zone between two
+            // logged command levels); the second refines what the first found, the others
+            // having moved by their own refinement since. An older term's first search only
+            // has to find that basin: it is coarse, and always refined in the next pass. The
+            // newest term and the lead, which the new term moves most, are searched finely
+            // throughout.
+            let older = k + 1 < terms.len();
+            // An older term with one basin is not searched in the first pass: the near search
+            // of the next finds where the new term moved its optimum, and the whole range
+            // would only cost replays (unless that search runs to the end of its bracket: the
+            // new term took over what this one explained, and it runs towards the edge).
+            let one_basin = older && !terms[k].effect.has_a_basin_per_interval();
+            if pass == 0 && one_basin {
                 continue;
             }
-            let found = if coarse {
+            let found = if pass == 0 && older {
                 minimize_to(&searches, Precision::Coarse, chi2)
-            } else if std::mem::take(&mut unsearched[k]) {
+            } else if pass == 1 && one_basin {
                 minimize_near_or_beyond(&searches, &terms[k].theta, chi2)
             } else {
                 let from = (pass > 0).then_some(terms[k].theta.as_slice());
@@ -81,7 +80,7 @@ pub(crate) fn refine(ctx: &mut Context, terms: &mut [Term], weights: &Weights) {
                 terms[k].theta = opt.theta;
                 terms[k].theta_sd = opt.sd;
             }
-            searched_at[k] = (!coarse).then_some(key);
+            searched_at[k] = (pass > 0 || !older).then_some(key);
         }
         let key = objective_key(ctx, terms, TIMING);
         if timed_at.as_ref() != Some(&key) {
