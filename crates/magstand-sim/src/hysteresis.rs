@@ -106,6 +106,9 @@ impl crate::stand_module::StandModule for HysteresisModule {
     fn state(&self) -> f64 {
         self.state.output_a
     }
+    fn boxed_clone(&self) -> Box<dyn crate::stand_module::StandModule> {
+        Box::new(self.clone())
+    }
     fn through_soft_iron(&self) -> bool {
         true
     }

@@ -38,6 +38,15 @@ pub trait StandModule: std::fmt::Debug + Send {
     /// Whether its field reaches the sensor from outside (through the sensor's soft iron,
     /// like the wiring's), or arises inside the sensor (an offset drift).
     fn through_soft_iron(&self) -> bool;
+    /// A copy in the same state (a replay reads a late magnetometer from copies stepped on
+    /// between rows).
+    fn boxed_clone(&self) -> Box<dyn StandModule>;
+}
+
+impl Clone for Box<dyn StandModule> {
+    fn clone(&self) -> Self {
+        self.boxed_clone()
+    }
 }
 
 /// A stand module's scenario table: its keys checked, and the module built from them.

@@ -139,6 +139,9 @@ impl crate::stand_module::StandModule for ThermalModule {
     fn state(&self) -> f64 {
         self.state.temp_c
     }
+    fn boxed_clone(&self) -> Box<dyn crate::stand_module::StandModule> {
+        Box::new(self.clone())
+    }
     fn through_soft_iron(&self) -> bool {
         false
     }
