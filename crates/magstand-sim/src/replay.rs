@@ -353,9 +353,9 @@ pub fn replay_logged(
             for (i, &(a, b, h)) in steps.iter().enumerate() {
                 // The places within this substep (the last takes any that rounding put at its
                 // end): each from a copy stepped on to it.
-                while let Some(place) = unread.next_if(|&(k, f)| {
-                    k + 1 == r && f > 0.0 && (f * dt < b || i == last)
-                }) {
+                while let Some(place) =
+                    unread.next_if(|&(k, f)| k + 1 == r && f > 0.0 && (f * dt < b || i == last))
+                {
                     let mut copy = state.clone();
                     let to = place.1 * dt;
                     stepper.step(&mut copy, r, (a, to, to - a), lead_from, &mut at_place);
@@ -1063,7 +1063,11 @@ mod tests {
         // (which the delayed times are, 0.01 s after it). The late read is never further than
         // the straight line between rows, a small fraction of it in what a change of command
         // steps (speed, current), and in the slow board temperature as close as at the rows.
-        for (what, w) in [("speed", speed), ("current", current), ("temperature", temp)] {
+        for (what, w) in [
+            ("speed", speed),
+            ("current", current),
+            ("temperature", temp),
+        ] {
             assert!(w.late <= w.straight, "{what} from the fine grid: {w:?}");
         }
         assert!(

@@ -134,28 +134,15 @@ pub(crate) fn build_with_lead(ctx: &Context, terms: &[(&dyn Effect, &[f64])], le
     } else {
         0.0
     };
-    // Where the motors are coupled, the magnetometer's delay shifts a replay between its rows
-    // without changing it: replays are kept without it and shifted here, so a search over the
-    // delay replays once. Where they are not, the replay reads the delayed times by its own
-    // steps (a command change is a step at its moment, not a ramp between two rows: at a low
-    // rate a ramp misses half the step at the row the delay puts within its interval).
-    let delay_s = if magstand_sim::replay::motors_uncoupled(&s, logged) {
-        0.0
-    } else {
-        std::mem::take(&mut s.logging.mag_delay_s)
-    };
+    // The replay reads a late magnetometer's rows at their delayed times by its own steps (a
+    // command change is a step at its moment, not a ramp between two rows: at a low rate a
+    // ramp misses half the step at the row the delay puts within its interval).
     // The replay takes the lead within 0..1: a curvature step past an end is the end's replay.
     let lead = lead.clamp(0.0, 1.0);
-    let undelayed = ctx.replays.get_or_make(&s, lead, logged, || {
+    let trace = ctx.replays.get_or_make(&s, lead, logged, || {
         replay_logged(&s, &ctx.rec.t_s, &ctx.rec.thr, logged, lead)
     });
-    let delayed;
-    let trace: &Trace = if delay_s > 0.0 {
-        delayed = undelayed.delayed(delay_s);
-        &delayed
-    } else {
-        &undelayed
-    };
+    let trace: &Trace = &trace;
     let mut design = Design::baseline(
         trace,
         ctx.follow_recorded_current,
