@@ -208,9 +208,8 @@ fn fixed_supply_voltage(p: &Scenario) -> bool {
 
 /// Whether nothing couples the motors of `scenario` within an interval when replayed with
 /// `logged`: the voltage is the logged one or does not move with the load, and no stand
-/// module adds a field. Such a replay steps each motor on its own, and reads a late
-/// magnetometer's rows (`logging.mag_delay_s`) at their delayed times by its own steps,
-/// where any other replay interpolates between its rows ([`Trace::delay`]).
+/// module adds a field. Such a replay steps each motor on its own, in one step per part of
+/// an interval; any other steps them together in substeps.
 pub fn motors_uncoupled(scenario: &Scenario, logged: Logged) -> bool {
     (logged.bat_v.is_some() || fixed_supply_voltage(scenario))
         && !scenario.module_params().iter().any(|m| m.adds_field())
