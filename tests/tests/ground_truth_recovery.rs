@@ -235,7 +235,10 @@ fn degenerate_data_gives_clear_errors_not_nan() {
     assert!(data_error(&few, InputKind::Throttle).contains("at least"));
     // Per-motor inputs on a stair where all motors move together.
     let e = data_error(&stair, InputKind::Motors);
-    assert!(e.contains("not independent") && e.contains("thr_"), "{e}");
+    assert!(
+        e.contains("r.csv") && e.contains("motor 2 gets motor 1's command on every row"),
+        "{e}"
+    );
     // Current input without a current column.
     let mut nocurrent = stair.clone();
     nocurrent.bat_a = None;

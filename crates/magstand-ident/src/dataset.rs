@@ -260,7 +260,51 @@ fn inputs(
             ),
         });
     }
+    if kind == InputKind::Motors
+        && let Some(why) = dependent_motor(rec)
+    {
+        return Err(IdentError::Singular {
+            origin: origin.into(),
+            what: "per-motor model".into(),
+            why: format!(
+                "{why}, so the motors' own fields cannot be told apart; a per-motor model needs \
+                 commands that move each motor on its own (a `per_motor_steps` program), or use \
+                 `--inputs throttle`"
+            ),
+        });
+    }
     Ok((spec, u, x))
+}
+
+/// How far a motor's commands must stand from the span of the earlier motors' and a constant,
+/// as the sine of the angle between them, to count as a regressor of their own: far below a
+/// one-percent differential command, far above rounding.
+const INDEPENDENT_COMMAND_SINE: f64 = 1e-8;
+
+/// The first motor of `rec` whose commands are, on every row, a combination of the earlier
+/// motors' and a constant (by a QR of `[1, thr_1 .. thr_N]`: the diagonal of `R` is each
+/// column's distance from the span of those before it), described for an error; `None` where
+/// every motor's commands are their own.
+fn dependent_motor(rec: &Recording) -> Option<String> {
+    let (n, motors) = (rec.len(), rec.motor_count());
+    let a = nalgebra::DMatrix::from_fn(
+        n,
+        motors + 1,
+        |r, c| {
+            if c == 0 { 1.0 } else { rec.thr[c - 1][r] }
+        },
+    );
+    let norms: Vec<f64> = a.column_iter().map(|c| c.norm()).collect();
+    let r = a.qr().r();
+    let m = (1..=motors).find(|&c| r[(c, c)].abs() <= INDEPENDENT_COMMAND_SINE * norms[c])?;
+    let same = (0..m - 1).find(|&j| rec.thr[j] == rec.thr[m - 1]);
+    Some(match same {
+        Some(j) => format!("motor {m} gets motor {}'s command on every row", j + 1),
+        None => format!(
+            "motor {m}'s command is on every row a combination of motors 1..{}'s and a constant",
+            m - 1
+        ),
+    })
 }
 
 /// Minimum rows a fit accepts.
@@ -399,18 +443,27 @@ impl Dataset {
 mod tests {
     use super::*;
 
-    /// A stair of three levels on four motors with unequal commands, its supply current and a
-    /// field growing with the commands; motors off at both ends.
+    /// A stair of three levels on four motors with unequal commands (each motor's own small
+    /// wobble on its share of the level), its supply current and a field growing with the
+    /// commands; motors off at both ends.
     fn stair() -> Recording {
         let n = 600;
         let level = |r: usize| match r {
             0..100 | 500.. => 0.0,
             _ => 0.2 + 0.2 * ((r - 100) / 134) as f64,
         };
+        let wobble = |m: usize, r: usize| 0.005 * (r as f64 * (0.37 + 0.23 * m as f64)).sin();
         let mut rec = Recording {
             t_s: (0..n).map(|r| r as f64 * 0.02).collect(),
             thr: (0..4)
-                .map(|m| (0..n).map(|r| level(r) * (1.0 + 0.05 * m as f64)).collect())
+                .map(|m| {
+                    (0..n)
+                        .map(|r| match level(r) {
+                            0.0 => 0.0,
+                            l => l * (1.0 + 0.05 * m as f64) + wobble(m, r),
+                        })
+                        .collect()
+                })
                 .collect(),
             mag_ut: (0..n)
                 .map(|r| Vec3::new(20.0 + 3.0 * level(r), -5.0, 45.0 - level(r).powi(2)))
@@ -419,6 +472,41 @@ mod tests {
         };
         rec.bat_a = Some((0..n).map(|r| 0.5 + 40.0 * level(r).powi(2)).collect());
         rec
+    }
+
+    /// Regression: on a hexacopter whose motors 1 and 5 (and 2 and 6) always got the same
+    /// command, `fit --inputs motors` stopped with "regressor `thr_5` of local model 1 is not
+    /// independent ... the input does not vary enough where that model is responsible": true
+    /// of no local model in particular, and silent on why. The per-motor inputs are now
+    /// checked before any fit, and the error names the motors that cannot be told apart.
+    #[test]
+    fn per_motor_inputs_that_cannot_be_told_apart_are_refused_by_name() {
+        let why = |rec: &Recording| match Dataset::from_recording(rec, InputKind::Motors, "t") {
+            Err(IdentError::Singular { why, .. }) => why,
+            other => panic!("expected a singular per-motor model, got {other:?}"),
+        };
+        let base = stair();
+        // Motor 4 given motor 2's commands.
+        let mut paired = base.clone();
+        paired.thr[3] = paired.thr[1].clone();
+        let text = why(&paired);
+        assert!(
+            text.contains("motor 4 gets motor 2's command on every row"),
+            "{text}"
+        );
+        // Motor 3 a mix of motors 1 and 2 and a constant offset while running (as a mixer
+        // makes a hexacopter's six commands from four inputs) is refused by combination.
+        let mut mixed = base.clone();
+        mixed.thr[2] = (0..base.len())
+            .map(|r| 0.5 * base.thr[0][r] + 0.7 * base.thr[1][r])
+            .collect();
+        let text = why(&mixed);
+        assert!(
+            text.contains("motor 3's command is on every row a combination of motors 1..2's"),
+            "{text}"
+        );
+        // Differential commands of under a percent still tell the motors apart.
+        assert!(Dataset::from_recording(&base, InputKind::Motors, "t").is_ok());
     }
 
     #[test]

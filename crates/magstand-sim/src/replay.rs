@@ -377,6 +377,10 @@ pub fn replay_logged(
     tr
 }
 
+/// The supply voltage at a place (row, fraction of the interval after it) while a current
+/// flows, V, from the supply's state.
+type VoltageAt<'a> = &'a dyn Fn(&SupplyState, (usize, f64), f64) -> f64;
+
 /// What a coupled replay carries from one substep to the next.
 #[derive(Debug, Clone)]
 struct CoupledState {
@@ -403,7 +407,7 @@ struct CoupledStepper<'a> {
     thr: &'a [Vec<f64>],
     avionics: f64,
     /// The supply voltage at a place while a current flows.
-    voltage_at: &'a dyn Fn(&SupplyState, (usize, f64), f64) -> f64,
+    voltage_at: VoltageAt<'a>,
     /// The current the modules see at a row, from the model's.
     supply_a: &'a dyn Fn(usize, f64) -> f64,
 }
@@ -462,7 +466,7 @@ struct CoupledReader<'a> {
     /// Each motor's wiring gain less the motors' mean, µT/A.
     gains: &'a [Vec3],
     /// The supply voltage at a place while a current flows.
-    voltage_at: &'a dyn Fn(&SupplyState, (usize, f64), f64) -> f64,
+    voltage_at: VoltageAt<'a>,
     /// The current the modules see at a place, from the model's.
     supply_a: &'a dyn Fn((usize, f64), f64) -> f64,
 }
