@@ -449,35 +449,40 @@ fn refined_to_edge(ctx: &Context, term: &Term) -> Option<String> {
         .map(|why| format!("refitted beside the other terms, {why}"))
 }
 
-/// The held-out RMSE before and after the newest of `terms` (its report) and the residual
-/// after it (its stage), measured on the model as it stands: with the other terms at their
-/// refined parameters, without it and with it. Left as they were where either cannot be
-/// fitted.
-fn restate_gain(
+/// The held-out RMSE before and after each of `terms` from `from` on (its report) and the
+/// residual after it (its stage), measured on the model as it stands: each with the terms
+/// before it at their refined parameters, without it and with it. `reports` and `stages` run
+/// beside `terms` (the stages after the baseline's). Those left are kept as they were from
+/// the first that cannot be fitted on.
+fn restate_gains(
     ctx: &Context,
     terms: &[Term],
     w: &Weights,
-    report: Option<&mut EffectReport>,
-    stage: Option<&mut (String, Vec<Vec3>)>,
+    reports: &mut [EffectReport],
+    stages: &mut [(String, Vec<Vec3>)],
+    from: usize,
 ) {
-    let (Some(report), Some(stage)) = (report, stage) else {
-        return;
-    };
     let refs = as_refs(terms);
-    let Some((_, older)) = refs.split_last() else {
-        return;
-    };
     let y = &ctx.rec.mag_ut;
-    let (Some(without), Some(with)) = (
-        fitted_with(ctx, older, ctx.command_lead, w),
-        fitted_with(ctx, &refs, ctx.command_lead, w),
-    ) else {
+    let Some(mut without) = fitted_with(ctx, &refs[..from.min(refs.len())], ctx.command_lead, w)
+    else {
         return;
     };
-    let after = with.residuals(y);
-    report.holdout_rmse_before_ut = holdout_rmse(&without.residuals(y), &ctx.split.holdout);
-    report.holdout_rmse_after_ut = holdout_rmse(&after, &ctx.split.holdout);
-    stage.1 = after;
+    for (i, (report, stage)) in reports
+        .iter_mut()
+        .zip(stages.iter_mut())
+        .enumerate()
+        .skip(from)
+    {
+        let Some(with) = fitted_with(ctx, &refs[..=i], ctx.command_lead, w) else {
+            return;
+        };
+        let after = with.residuals(y);
+        report.holdout_rmse_before_ut = holdout_rmse(&without.residuals(y), &ctx.split.holdout);
+        report.holdout_rmse_after_ut = holdout_rmse(&after, &ctx.split.holdout);
+        stage.1 = after;
+        without = with;
+    }
 }
 
 /// What [`forward_search`] restores where a finding's acceptance is undone.
@@ -677,6 +682,9 @@ pub(crate) fn forward_search<'e>(
         // itself ends at an edge, its acceptance is undone (with any withdrawal it caused)
         // and the round tried again without it.
         let mut refused = None;
+        // The first place a withdrawal emptied: the reports from there on measured their gains
+        // beside the withdrawn finding.
+        let mut restate_from = terms.len();
         loop {
             let newest = terms.len() - 1;
             if let Some(why) = refined_to_edge(ctx, &terms[newest]) {
@@ -691,6 +699,7 @@ pub(crate) fn forward_search<'e>(
             let gone = terms.remove(j);
             reports.remove(j);
             stages.remove(j + 1);
+            restate_from = restate_from.min(j);
             withdrawn.push(format!(
                 "{} (named in an earlier round) was withdrawn once {} was named: {}",
                 gone.effect.name(),
@@ -715,9 +724,9 @@ pub(crate) fn forward_search<'e>(
             continue;
         }
         if withdrawn.len() > before_acceptance.withdrawn {
-            // The new finding's report measured its gain beside a finding since withdrawn:
-            // measured again on the model as it now stands, with and without it.
-            restate_gain(ctx, &terms, w, reports.last_mut(), stages.last_mut());
+            // The reports after a withdrawn finding measured their gains beside it: measured
+            // again on the model as it now stands, each with and without its finding.
+            restate_gains(ctx, &terms, w, &mut reports, &mut stages[1..], restate_from);
         }
         latest = Some(fit_model(ctx, &terms, Some(w))?);
         rounds.push(round);
