@@ -342,6 +342,8 @@ pub fn replay_logged(
             bat_a.map_or(model_a, |a| interpolate(a, place))
         },
     };
+    // The copy a late read steps on, its buffers kept from row to row.
+    let mut copy = state.clone();
     for r in 0..rows {
         if r > 0 {
             let dt = t_s[r] - t_s[r - 1];
@@ -355,7 +357,7 @@ pub fn replay_logged(
                 while let Some(place) =
                     unread.next_if(|&(k, f)| k + 1 == r && f > 0.0 && (f * dt < b || i == last))
                 {
-                    let mut copy = state.clone();
+                    copy.clone_from(&state);
                     let to = place.1 * dt;
                     stepper.step(&mut copy, r, (a, to, to - a), lead_from, &mut at_place);
                     reader.read(&mut copy, place, &mut tr);
@@ -382,7 +384,7 @@ pub fn replay_logged(
 type VoltageAt<'a> = &'a dyn Fn(&SupplyState, (usize, f64), f64) -> f64;
 
 /// What a coupled replay carries from one substep to the next.
-#[derive(Debug, Clone)]
+#[derive(Debug)]
 struct CoupledState {
     /// Every motor's state.
     motors: Vec<MotorState>,
@@ -398,6 +400,29 @@ struct CoupledState {
     total_a: f64,
     /// The stand modules that add a field.
     parts: Vec<Box<dyn StandModule>>,
+}
+
+impl Clone for CoupledState {
+    fn clone(&self) -> Self {
+        Self {
+            motors: self.motors.clone(),
+            targets: self.targets.clone(),
+            acting: self.acting.clone(),
+            supply: self.supply,
+            total_a: self.total_a,
+            parts: self.parts.clone(),
+        }
+    }
+
+    /// In the buffers already held: a late magnetometer's read copies the state once a row.
+    fn clone_from(&mut self, source: &Self) {
+        self.motors.clone_from(&source.motors);
+        self.targets.clone_from(&source.targets);
+        self.acting.clone_from(&source.acting);
+        self.supply = source.supply;
+        self.total_a = source.total_a;
+        self.parts.clone_from(&source.parts);
+    }
 }
 
 /// How a coupled replay steps its state through part of an interval.
