@@ -323,9 +323,10 @@ pub fn fit_accuracy(ident: u64, valid: u64) -> Vec<(String, Result<[f64; 3], Str
             FitConfig::automatic(),
         ),
     ] {
-        let data = Dataset::from_recording(&id_rec, input, "ident")
-            .unwrap_or_else(|e| panic!("{name}: the data set: {e}"));
-        let fitted = config.check().unwrap().fit(&data);
+        // Per-motor inputs may not be told apart (a hexacopter's paired motors): refused when
+        // the data set is made, before any fit.
+        let fitted = Dataset::from_recording(&id_rec, input, "ident")
+            .and_then(|data| config.check().unwrap().fit(&data));
         let result = match fitted {
             Ok(model) => Ok(rmse_ut(&model.dist_column(&va_rec), &truth)),
             Err(e) if input == InputKind::Motors => Err(e.to_string()),
