@@ -281,22 +281,38 @@ fn inputs(
 /// one-percent differential command, far above rounding.
 const INDEPENDENT_COMMAND_SINE: f64 = 1e-8;
 
+/// Rows per block of the QR in [`dependent_motor`]: the triangle of the rows so far and the
+/// next block are factored together, so a ten-hour log is never copied whole.
+const QR_BLOCK_ROWS: usize = 4096;
+
 /// The first motor of `rec` whose commands are, on every row, a combination of the earlier
 /// motors' and a constant (by a QR of `[1, thr_1 .. thr_N]`: the diagonal of `R` is each
 /// column's distance from the span of those before it), described for an error; `None` where
-/// every motor's commands are their own.
+/// every motor's commands are their own. The QR is taken a block of rows at a time (the `R`
+/// of the rows so far stacked on the next block), in bounded memory.
 fn dependent_motor(rec: &Recording) -> Option<String> {
     let (n, motors) = (rec.len(), rec.motor_count());
-    let a = nalgebra::DMatrix::from_fn(
-        n,
-        motors + 1,
-        |r, c| {
-            if c == 0 { 1.0 } else { rec.thr[c - 1][r] }
-        },
-    );
-    let norms: Vec<f64> = a.column_iter().map(|c| c.norm()).collect();
-    let r = a.qr().r();
-    let m = (1..=motors).find(|&c| r[(c, c)].abs() <= INDEPENDENT_COMMAND_SINE * norms[c])?;
+    let k = motors + 1;
+    let column = |c: usize, r: usize| if c == 0 { 1.0 } else { rec.thr[c - 1][r] };
+    let mut norms_sq = vec![0.0; k];
+    let mut r_so_far: Option<nalgebra::DMatrix<f64>> = None;
+    for start in (0..n).step_by(QR_BLOCK_ROWS) {
+        let rows = start..(start + QR_BLOCK_ROWS).min(n);
+        let above = r_so_far.as_ref().map_or(0, |r| r.nrows());
+        let block = nalgebra::DMatrix::from_fn(above + rows.len(), k, |i, c| match &r_so_far {
+            Some(r) if i < above => r[(i, c)],
+            _ => column(c, rows.start + i - above),
+        });
+        for (c, sq) in norms_sq.iter_mut().enumerate() {
+            *sq += rows.clone().map(|r| column(c, r).powi(2)).sum::<f64>();
+        }
+        r_so_far = Some(block.qr().r());
+    }
+    let r = r_so_far?;
+    let m = (1..=motors).find(|&c| {
+        let diagonal = if c < r.nrows() { r[(c, c)].abs() } else { 0.0 };
+        diagonal <= INDEPENDENT_COMMAND_SINE * norms_sq[c].sqrt()
+    })?;
     let same = (0..m - 1).find(|&j| rec.thr[j] == rec.thr[m - 1]);
     Some(match same {
         Some(j) => format!("motor {m} gets motor {}'s command on every row", j + 1),
@@ -507,6 +523,26 @@ mod tests {
         );
         // Differential commands of under a percent still tell the motors apart.
         assert!(Dataset::from_recording(&base, InputKind::Motors, "t").is_ok());
+        // Over several of the QR's blocks (the stair repeated), the same answers.
+        let long = |rec: &Recording| {
+            let mut out = rec.clone();
+            let span = rec.t_s.last().unwrap() + 0.02;
+            for k in 1..(3 * QR_BLOCK_ROWS / rec.len() + 2) {
+                out.t_s.extend(rec.t_s.iter().map(|t| t + k as f64 * span));
+                for (o, c) in out.thr.iter_mut().zip(&rec.thr) {
+                    o.extend(c);
+                }
+                out.mag_ut.extend(&rec.mag_ut);
+                if let (Some(o), Some(a)) = (out.bat_a.as_mut(), rec.bat_a.as_ref()) {
+                    o.extend(a);
+                }
+            }
+            assert!(out.len() > 3 * QR_BLOCK_ROWS, "{} rows", out.len());
+            out
+        };
+        assert_eq!(dependent_motor(&long(&paired)), dependent_motor(&paired));
+        assert_eq!(dependent_motor(&long(&mixed)), dependent_motor(&mixed));
+        assert_eq!(dependent_motor(&long(&base)), None);
     }
 
     #[test]
