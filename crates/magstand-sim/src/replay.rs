@@ -225,8 +225,13 @@ pub fn replay_logged(
 ) -> Trace {
     let p = scenario;
     let Logged { bat_v, bat_a } = logged;
-    // The current the stand modules see at a row: the recorded one where given.
-    let supply_a = |row: usize, model_a: f64| bat_a.map_or(model_a, |a| a[row]);
+    // The current the stand modules see at a place (row, fraction of the interval after it):
+    // the recorded one where given (a measurement: between its rows, a straight line).
+    let supply_a =
+        |place: (usize, f64), model_a: f64| bat_a.map_or(model_a, |a| interpolate(a, place));
+    // A late magnetometer reads each row at its time less the delay: the places of those times.
+    let delay_s = p.logging.mag_delay_s;
+    let places = (delay_s > 0.0).then(|| locate_increasing(t_s, t_s.iter().map(|&t| t - delay_s)));
     let n_motors = p.motors.count;
     let rows = t_s.len();
     let avionics = p.supply.avionics_current_a();
@@ -273,11 +278,7 @@ pub fn replay_logged(
     // each motor's first-order lag toward a held target is advanced exactly in one step: the
     // substeps would only cost exponentials and give the same state to rounding.
     if motors_uncoupled(p, logged) {
-        // A late magnetometer sees the state at its row's time less the delay: found there
-        // by the replay's own steps (below), not between rows.
-        let delay_s = p.logging.mag_delay_s;
-        let places =
-            (delay_s > 0.0).then(|| locate_increasing(t_s, t_s.iter().map(|&t| t - delay_s)));
+        // A late magnetometer's places are found by the replay's own steps, not between rows.
         let mut tr = replay_uncoupled(p, t_s, thr, command_lead, places.as_deref(), &|r| {
             voltage_at(&SupplyState::default(), (r, 0.0), 0.0)
         });
@@ -296,24 +297,18 @@ pub fn replay_logged(
                         extra += g * current[r];
                     }
                 }
-                // A logged current is a measurement: between its rows, a straight line.
-                let total_a = match (&places, bat_a) {
-                    (Some(places), Some(a)) => interpolate(a, places[r]),
-                    _ => supply_a(r, total_a),
-                };
-                (total_a, extra)
+                let place = places.as_ref().map_or((r, 0.0), |places| places[r]);
+                (supply_a(place, total_a), extra)
             })
             .unzip();
         return tr;
     }
     let mut steps = Vec::new();
     let mut spinup = LagFactor::new(p.motors.spinup_tau_s);
-    // A late magnetometer reads each row at its time less the delay: from a copy of the state
-    // at the substep before that time, stepped on to it (a command change is a step at its
-    // moment, not a ramp between two rows). The state itself is still read at every row, where
-    // a play operator is fed the row's current.
-    let delay_s = p.logging.mag_delay_s;
-    let places = (delay_s > 0.0).then(|| locate_increasing(t_s, t_s.iter().map(|&t| t - delay_s)));
+    // A late magnetometer's places are read from a copy of the state at the substep before
+    // each, stepped on to it (a command change is a step at its moment, not a ramp between two
+    // rows). The state itself is still read at every row, where a play operator is fed the
+    // row's current.
     let mut unread = places.iter().flatten().copied().peekable();
     let mut at_place = LagFactor::new(p.motors.spinup_tau_s);
     let mut state = CoupledState {
@@ -338,9 +333,7 @@ pub fn replay_logged(
         full_speed,
         gains: &gains,
         voltage_at: &voltage_at,
-        supply_a: &|place: (usize, f64), model_a: f64| {
-            bat_a.map_or(model_a, |a| interpolate(a, place))
-        },
+        supply_a: &supply_a,
     };
     // The copy a late read steps on, its buffers kept from row to row.
     let mut copy = state.clone();
@@ -382,6 +375,9 @@ pub fn replay_logged(
 /// The supply voltage at a place (row, fraction of the interval after it) while a current
 /// flows, V, from the supply's state.
 type VoltageAt<'a> = &'a dyn Fn(&SupplyState, (usize, f64), f64) -> f64;
+
+/// The supply current the modules see at a place, A, from the model's.
+type SupplyAt<'a> = &'a dyn Fn((usize, f64), f64) -> f64;
 
 /// What a coupled replay carries from one substep to the next.
 #[derive(Debug)]
@@ -433,8 +429,8 @@ struct CoupledStepper<'a> {
     avionics: f64,
     /// The supply voltage at a place while a current flows.
     voltage_at: VoltageAt<'a>,
-    /// The current the modules see at a row, from the model's.
-    supply_a: &'a dyn Fn(usize, f64) -> f64,
+    /// The current the modules see at a place, from the model's.
+    supply_a: SupplyAt<'a>,
 }
 
 impl CoupledStepper<'_> {
@@ -474,7 +470,7 @@ impl CoupledStepper<'_> {
         st.total_a = total_a;
         st.supply.step(total_a, h);
         let electrical = Electrical {
-            total_a: (self.supply_a)(r - 1, total_a),
+            total_a: (self.supply_a)((r - 1, 0.0), total_a),
             voltage_v: voltage,
         };
         for part in st.parts.iter_mut() {
@@ -493,7 +489,7 @@ struct CoupledReader<'a> {
     /// The supply voltage at a place while a current flows.
     voltage_at: VoltageAt<'a>,
     /// The current the modules see at a place, from the model's.
-    supply_a: &'a dyn Fn((usize, f64), f64) -> f64,
+    supply_a: SupplyAt<'a>,
 }
 
 impl CoupledReader<'_> {
@@ -765,14 +761,12 @@ impl Trace {
         *self = self.delayed(delay_s);
     }
 
-    /// The trace [`Trace::delay`] makes of this one, built from it without changing it (a
-    /// search over the delay shifts one replay many times).
+    /// The trace [`Trace::delay`] makes of this one, built from it without changing it.
     pub fn delayed(&self, delay_s: f64) -> Trace {
         use rayon::prelude::*;
         let at = locate_increasing(&self.t_s, self.t_s.iter().map(|&t| t - delay_s));
-        // Every column shifted on its own, the per-motor ones spread over the cores: a search
-        // over the delay shifts a replay at each of its steps, and the searches' steps run
-        // one after another. Each column's values are the same bits whatever the thread count.
+        // Every column shifted on its own, the per-motor ones spread over the cores; each
+        // column's values are the same bits whatever the thread count.
         let shift = |col: &Vec<f64>| shifted(col, &at);
         let per_motor = |cols: &[Vec<f64>]| cols.par_iter().map(shift).collect();
         let (extra_ut, (speed, driven, armed, current_a)) = rayon::join(
@@ -980,13 +974,6 @@ mod tests {
         }
     }
 
-    /// Regression: a late magnetometer's rows were read between the replay's rows by linear
-    /// interpolation. A command change is a step at its moment within the interval (for a
-    /// fast spin-up): a row whose delayed time fell within the interval of a change got half
-    /// the step, whatever the moment, and at 25 Hz with a 0.3 s delay the diagnosis called the
-    /// misfit `unexplained`. An uncoupled replay now steps to each delayed time itself: a
-    /// 0.04 s delay at 10 Hz reads the states that a replay on a finer grid, whose rows carry
-    /// the same switching moments, holds at those times.
     /// How far a late magnetometer's rows are from the same times on a finer grid, at most.
     #[derive(Debug, Clone, Copy, Default)]
     struct LateRead {
@@ -1064,6 +1051,13 @@ mod tests {
         worst
     }
 
+    /// Regression: a late magnetometer's rows were read between the replay's rows by linear
+    /// interpolation. A command change is a step at its moment within the interval (for a
+    /// fast spin-up): a row whose delayed time fell within the interval of a change got half
+    /// the step, whatever the moment, and at 25 Hz with a 0.3 s delay the diagnosis called the
+    /// misfit `unexplained`. An uncoupled replay now steps to each delayed time itself: a
+    /// 0.04 s delay at 10 Hz reads the states that a replay on a finer grid, whose rows carry
+    /// the same switching moments, holds at those times.
     #[test]
     fn a_late_magnetometer_reads_the_replays_own_state_at_its_delayed_time() {
         // Nothing couples the motors: each is stepped on to the delayed time exactly.

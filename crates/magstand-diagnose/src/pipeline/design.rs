@@ -139,10 +139,9 @@ pub(crate) fn build_with_lead(ctx: &Context, terms: &[(&dyn Effect, &[f64])], le
     // ramp misses half the step at the row the delay puts within its interval).
     // The replay takes the lead within 0..1: a curvature step past an end is the end's replay.
     let lead = lead.clamp(0.0, 1.0);
-    let trace = ctx.replays.get_or_make(&s, lead, logged, || {
+    let trace: &Trace = &ctx.replays.get_or_make(&s, lead, logged, || {
         replay_logged(&s, &ctx.rec.t_s, &ctx.rec.thr, logged, lead)
     });
-    let trace: &Trace = &trace;
     let mut design = Design::baseline(
         trace,
         ctx.follow_recorded_current,
