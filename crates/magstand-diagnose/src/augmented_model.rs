@@ -48,7 +48,7 @@ use magstand_sim::Scenario;
 use magstand_sim::replay::{Logged, replay_logged};
 
 use crate::DiagnoseError;
-use crate::effects::{Context, Effect, catalog};
+use crate::effects::{Context, Effect};
 use crate::fit::variance_at;
 use crate::pipeline::design::build_with_lead;
 use crate::versioned_json;
@@ -64,6 +64,10 @@ pub const VERSION: u32 = 1;
 pub struct AugmentedTerm {
     /// Catalog name.
     pub name: String,
+    /// The effect's richer form, where that was kept (`free_discharge`: a battery whose
+    /// discharge shape is free); absent for the catalog's own form.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub variant: Option<String>,
     /// Nonlinear parameters, in the effect's search order.
     pub theta: Vec<f64>,
 }
@@ -384,14 +388,18 @@ impl AugmentedModel {
                 "the model follows the logged supply current, and this recording has no `bat_a` column: expected one (the model was fitted on a flight that had it)".into(),
             ));
         }
-        let effects: Vec<Box<dyn Effect>> = catalog();
         let mut terms: Vec<(&dyn Effect, &[f64])> = Vec::new();
         for t in &self.effects {
-            let e = effects
-                .iter()
-                .find(|e| e.name() == t.name)
-                .ok_or_else(|| bad(format!("the model names an unknown effect `{}`", t.name)))?;
-            terms.push((e.as_ref(), t.theta.as_slice()));
+            let e = crate::effects::find(&t.name, t.variant.as_deref()).ok_or_else(|| {
+                bad(match &t.variant {
+                    Some(v) => format!(
+                        "the model names an unknown form `{v}` of effect `{}`",
+                        t.name
+                    ),
+                    None => format!("the model names an unknown effect `{}`", t.name),
+                })
+            })?;
+            terms.push((e, t.theta.as_slice()));
         }
         let split = Split::new(&rec.t_s, self.block_s, self.holdout_every);
         let logged = Logged::of(rec, false, self.follow_recorded_current);

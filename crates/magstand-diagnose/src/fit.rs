@@ -164,6 +164,17 @@ fn may_vanish(name: &str) -> bool {
     name.ends_with(ARMED_IN_DEAD_ZONE)
 }
 
+/// Prefix of a battery's columns on a straight-line discharge, which its columns on the LiPo
+/// curve's determine where the charge drawn stays within one straight piece of that curve.
+pub(crate) const STRAIGHT_DISCHARGE: &str = "straight_discharge";
+
+/// Whether a design column may be left out of a fit that the others already determine: one
+/// that may vanish ([`may_vanish`]) or one on a straight-line discharge
+/// ([`STRAIGHT_DISCHARGE`]).
+fn may_drop(name: &str) -> bool {
+    may_vanish(name) || name.starts_with(STRAIGHT_DISCHARGE)
+}
+
 /// Whether a baseline column is one of its current law's (not the motors-off `reference` or a
 /// measured `current_a`).
 fn is_current_law(name: &str) -> bool {
@@ -322,13 +333,12 @@ pub(crate) fn fit(
         .collect();
     match fit_columns(design, &active, y, fixed, weights, holdout) {
         // Nor does one the others determine (motors armed within the dead zone on rows that
-        // the other columns already tell apart).
-        Err(SolveError::Singular { .. })
-            if active.iter().any(|&j| may_vanish(&design.names[j])) =>
-        {
+        // the other columns already tell apart, a straight discharge within one straight
+        // piece of the LiPo curve).
+        Err(SolveError::Singular { .. }) if active.iter().any(|&j| may_drop(&design.names[j])) => {
             let kept: Vec<usize> = active
                 .into_iter()
-                .filter(|&j| !may_vanish(&design.names[j]))
+                .filter(|&j| !may_drop(&design.names[j]))
                 .collect();
             fit_columns(design, &kept, y, fixed, weights, holdout)
         }

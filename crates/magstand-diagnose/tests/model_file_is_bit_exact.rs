@@ -28,6 +28,7 @@ fn coefficients_survive_the_file_bit_for_bit() {
         holdout_every: 3,
         effects: vec![AugmentedTerm {
             name: "current_lag".into(),
+            variant: None,
             theta: vec![0.28740422209046457],
         }],
         columns: (0..hard.len()).map(|i| format!("c{i}")).collect(),

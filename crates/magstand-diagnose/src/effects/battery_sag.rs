@@ -3,13 +3,39 @@ use magstand_sim::battery::{SupplyParams, lipo_cell_ocv_v};
 use magstand_sim::replay::{Trace, replay};
 
 use super::{Context, Effect, EffectFit, Param};
+use crate::fit::STRAIGHT_DISCHARGE;
 use crate::optimize::{Search, minimize};
 
 /// The supply is a battery whose voltage falls with the charge drawn and under load.
-pub struct BatterySag;
+///
+/// The catalog's form replays the nominal motor on a LiPo pack. Where no voltage is logged,
+/// a richer form ([`Effect::richer`]) also frees the discharge's shape and the current's
+/// sensitivity to the voltage ([`discharge_columns`]); it is kept only where it lowers the
+/// held-out error significantly beyond the catalog's form.
+pub struct BatterySag {
+    free_discharge: bool,
+}
+
+impl BatterySag {
+    /// The catalog's form: the nominal motor on a LiPo pack.
+    pub const NOMINAL: BatterySag = BatterySag {
+        free_discharge: false,
+    };
+}
+
+/// The richer form: the discharge's shape and the current's sensitivity to it free.
+static FREE_DISCHARGE: BatterySag = BatterySag {
+    free_discharge: true,
+};
+
+/// The richer form ([`FREE_DISCHARGE`]), for a model file that names it.
+pub(crate) fn free_discharge() -> &'static dyn Effect {
+    &FREE_DISCHARGE
+}
 
 nonlinear_params! {
-    /// The battery standing in for the supply, where no voltage is logged.
+    /// The battery standing in for the supply: searched where no voltage is logged, fitted
+    /// to `bat_v` where it is.
     Battery {
         /// Internal resistance, ohm.
         internal_resistance_ohm,
@@ -18,26 +44,23 @@ nonlinear_params! {
     }
 }
 
-fn searches() -> Vec<Search> {
-    vec![
-        Search {
-            name: "internal_resistance_ohm",
-            unit: "ohm",
-            lo: 0.003,
-            hi: 0.3,
-            log: true,
-            points: 9,
-        },
-        Search {
-            name: "capacity_ah",
-            unit: "Ah",
-            lo: 0.3,
-            hi: 30.0,
-            log: true,
-            points: 9,
-        },
-    ]
-}
+const RESISTANCE_SEARCH: Search = Search {
+    name: "internal_resistance_ohm",
+    unit: "ohm",
+    lo: 0.003,
+    hi: 0.3,
+    log: true,
+    points: 9,
+};
+
+const CAPACITY_SEARCH: Search = Search {
+    name: "capacity_ah",
+    unit: "Ah",
+    lo: 0.3,
+    hi: 30.0,
+    log: true,
+    points: 9,
+};
 
 /// The battery standing in for the supply: cells in series and the charge it starts with.
 /// With `bat_v` logged, the pack the highest logged voltage implies (cells at a nominal 3.9 V
@@ -98,7 +121,7 @@ impl BatterySag {
     ) -> Option<(Battery, Battery<Option<f64>>)> {
         let v = ctx.rec.bat_v.as_deref()?;
         let logged_pack = pack(ctx);
-        let o = minimize(&searches(), |theta| {
+        let o = minimize(&[RESISTANCE_SEARCH, CAPACITY_SEARCH], |theta| {
             let mut b = s.clone();
             set_battery(ctx, logged_pack, &mut b, Battery::from_slice(theta)?);
             let tr = replay(&b, &ctx.rec.t_s, &ctx.rec.thr, None, ctx.command_lead);
@@ -118,6 +141,15 @@ impl Effect for BatterySag {
     fn name(&self) -> &'static str {
         "battery_sag"
     }
+    fn variant(&self) -> Option<&'static str> {
+        self.free_discharge.then_some(FREE_DISCHARGE_VARIANT)
+    }
+    fn richer(&self, ctx: &Context) -> Option<&'static dyn Effect> {
+        // With `bat_v` the voltage is the log's; a flight follows its logged current,
+        // whatever the voltage did to it.
+        let unlogged = ctx.rec.bat_v.is_none() && !ctx.follow_recorded_current;
+        (unlogged && !self.free_discharge).then_some(&FREE_DISCHARGE)
+    }
     fn explanation(&self) -> &'static str {
         "The battery voltage falls with the charge drawn and sags under load, so at a fixed \
          command the motor currents, and the field they make, drift down over a run."
@@ -129,7 +161,7 @@ impl Effect for BatterySag {
         if ctx.rec.bat_v.is_some() {
             Vec::new()
         } else {
-            searches()
+            vec![RESISTANCE_SEARCH, CAPACITY_SEARCH]
         }
     }
     fn apply(&self, ctx: &Context, s: &mut Scenario, theta: &[f64]) {
@@ -147,7 +179,7 @@ impl Effect for BatterySag {
         ctx: &Context,
         trace: &Trace,
         law: &[(&str, &[f64])],
-        _theta: &[f64],
+        theta: &[f64],
     ) -> Vec<(String, Vec<f64>)> {
         // With the voltage logged, the replay follows it through the nominal motor, whose
         // current grows about as the voltage squared at a fixed command (speed with the
@@ -158,7 +190,10 @@ impl Effect for BatterySag {
         // own columns (a law in powers of speed holds the current times its derivative), so
         // each of them times the change enters with a free gain.
         let Some(v) = ctx.rec.bat_v.as_deref() else {
-            return Vec::new();
+            return match Battery::from_slice(theta) {
+                Some(b) if self.free_discharge => discharge_columns(ctx, trace, law, b.capacity_ah),
+                _ => Vec::new(),
+            };
         };
         // Relative to the nominal supply's no-load voltage, a constant of the model (not of
         // the recording), so that a model file predicts a new recording with the same columns.
@@ -202,6 +237,8 @@ impl Effect for BatterySag {
             .collect()
     }
     fn switch_on(&self, ctx: &Context, s: &mut Scenario, f: &EffectFit) -> Vec<Param> {
+        let pack = pack(ctx);
+        let cells = Param::new("cells", pack.0 as f64, None, "cells in series");
         let fitted = if ctx.rec.bat_v.is_none() {
             Battery::from_slice(f.theta).zip(Battery::from_slice(f.theta_sd))
         } else {
@@ -210,7 +247,6 @@ impl Effect for BatterySag {
         let Some((b, sd)) = fitted else {
             return Vec::new();
         };
-        let pack = pack(ctx);
         set_battery(ctx, pack, s, b);
         vec![
             Param::new(
@@ -220,10 +256,72 @@ impl Effect for BatterySag {
                 "ohm",
             ),
             Param::new("capacity_ah", b.capacity_ah, sd.capacity_ah, "Ah"),
-            Param::new("cells", pack.0 as f64, None, "cells in series"),
+            cells,
         ]
     }
 }
+
+/// Without `bat_v`, the voltage's course over the run is the candidate's own, and two things
+/// that shape it are not stated: the pack's discharge curve (the replay's is a LiPo cell's)
+/// and how steeply the stand's current follows its voltage (the nominal motor's about as the
+/// voltage squared). To first order in the open-circuit voltage's relative change, the field
+/// at a command then moves by the change times a combination of the current law's columns.
+/// The change is taken in two shapes, from the replay's charge drawn at the candidate's
+/// capacity: the LiPo curve's, and a straight line between its empty and full cell voltages
+/// (a pack whose curve has no plateau). Each law column times each shape enters with a free
+/// gain, so a discharge curve between the two, and any first-order sensitivity of the
+/// current to the voltage, are within the term's reach.
+fn discharge_columns(
+    ctx: &Context,
+    trace: &Trace,
+    law: &[(&str, &[f64])],
+    capacity_ah: f64,
+) -> Vec<(String, Vec<f64>)> {
+    let (_, start_charge) = pack(ctx);
+    if !(capacity_ah > 0.0) {
+        return Vec::new();
+    }
+    let straight = |soc: f64| {
+        let (empty, full) = (lipo_cell_ocv_v(0.0), lipo_cell_ocv_v(1.0));
+        empty + (full - empty) * soc.clamp(0.0, 1.0)
+    };
+    let start_v = lipo_cell_ocv_v(start_charge);
+    // Charge drawn by the trapezoid rule over the rows (the replay's substeps are not kept).
+    let mut drawn_ah = 0.0;
+    let mut shapes = [
+        Vec::with_capacity(trace.t_s.len()),
+        Vec::with_capacity(trace.t_s.len()),
+    ];
+    for k in 0..trace.t_s.len() {
+        if k > 0 {
+            let dt_s = trace.t_s[k] - trace.t_s[k - 1];
+            drawn_ah += 0.5 * (trace.total_a[k] + trace.total_a[k - 1]) * dt_s / 3600.0;
+        }
+        let soc = start_charge - drawn_ah / capacity_ah;
+        shapes[0].push((lipo_cell_ocv_v(soc) - start_v) / start_v);
+        shapes[1].push((straight(soc) - straight(start_charge)) / start_v);
+    }
+    [LIPO_DISCHARGE, STRAIGHT_DISCHARGE]
+        .into_iter()
+        .zip(shapes)
+        .flat_map(|(prefix, shape)| {
+            law.iter()
+                .map(|(name, law)| {
+                    (
+                        format!("{prefix}_x_{name}"),
+                        law.iter().zip(&shape).map(|(x, d)| x * d).collect(),
+                    )
+                })
+                .collect::<Vec<_>>()
+        })
+        .collect()
+}
+
+/// The richer form's name in a model file ([`Effect::variant`]).
+const FREE_DISCHARGE_VARIANT: &str = "free_discharge";
+
+/// Prefix of a battery's columns on the LiPo curve's discharge ([`discharge_columns`]).
+const LIPO_DISCHARGE: &str = "lipo_discharge";
 
 #[cfg(test)]
 mod tests {

@@ -179,6 +179,19 @@ pub trait Effect: Sync + Send {
         true
     }
 
+    /// Which form of its catalog effect this is, for a model file: None for the catalog's
+    /// own, the name of a richer form ([`Effect::richer`]) otherwise.
+    fn variant(&self) -> Option<&'static str> {
+        None
+    }
+
+    /// A richer form of this effect on this recording, with more freedom where the stand's
+    /// physics is not stated. It is tried only where this form's gain is significant, and
+    /// kept only where its own held-out gain beyond this form's is.
+    fn richer(&self, _ctx: &Context) -> Option<&'static dyn Effect> {
+        None
+    }
+
     /// The names of the nonlinear parameters it can search, in order (its
     /// `nonlinear_params!` struct's names; none when it is linear in its regressors).
     fn parameters(&self) -> &'static [&'static str] {
@@ -300,7 +313,7 @@ pub(crate) fn searched_params(searches: &[Search], fitted: &EffectFit) -> Vec<Pa
 /// Every effect of the catalog, in a fixed order.
 pub fn catalog() -> Vec<Box<dyn Effect>> {
     vec![
-        Box::new(BatterySag),
+        Box::new(BatterySag::NOMINAL),
         Box::new(ThermalDrift),
         Box::new(CurrentLag),
         Box::new(TimeOffset),
@@ -308,6 +321,22 @@ pub fn catalog() -> Vec<Box<dyn Effect>> {
         Box::new(MotorAsymmetry),
         Box::new(DeadZone),
     ]
+}
+
+/// The catalog's effect `name` in its form `variant` ([`Effect::variant`]), as a model file
+/// names it.
+pub(crate) fn find(name: &str, variant: Option<&str>) -> Option<&'static dyn Effect> {
+    static CATALOG: std::sync::OnceLock<Vec<Box<dyn Effect>>> = std::sync::OnceLock::new();
+    let catalog = CATALOG.get_or_init(catalog);
+    match variant {
+        None => catalog
+            .iter()
+            .find(|e| e.name() == name)
+            .map(|e| e.as_ref()),
+        Some(v) => [battery_sag::free_discharge()]
+            .into_iter()
+            .find(|e| e.name() == name && e.variant() == Some(v)),
+    }
 }
 
 /// Names of the catalog's effects.
@@ -634,6 +663,21 @@ mod tests {
                 );
             }
         }
+    }
+
+    /// A model file names an effect by its name and form: each catalog effect is found as
+    /// itself, the battery's richer form by its variant, and an unknown form not at all.
+    #[test]
+    fn a_model_files_effects_are_found_by_name_and_form() {
+        for e in catalog() {
+            let found = find(e.name(), None).map(|f| (f.name(), f.variant()));
+            assert_eq!(found, Some((e.name(), None)), "effect {}", e.name());
+        }
+        let rich = find("battery_sag", Some("free_discharge")).map(|f| (f.name(), f.variant()));
+        assert_eq!(rich, Some(("battery_sag", Some("free_discharge"))));
+        assert!(find("battery_sag", Some("no_such_form")).is_none());
+        assert!(find("thermal_drift", Some("free_discharge")).is_none());
+        assert!(find("no_such_effect", None).is_none());
     }
 
     #[test]

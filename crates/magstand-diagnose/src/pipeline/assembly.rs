@@ -177,6 +177,7 @@ fn model_file(
             .iter()
             .map(|t| AugmentedTerm {
                 name: t.effect.name().into(),
+                variant: t.effect.variant().map(Into::into),
                 theta: t.theta.clone(),
             })
             .collect(),

@@ -9,7 +9,7 @@ use crate::diagnosis::{CandidateResult, EffectReport, Round};
 use crate::effects::{Context, Effect};
 use crate::fit::{Fitted, Weights};
 use crate::locate::{Rows, Signal, locate};
-use crate::optimize::minimize;
+use crate::optimize::{minimize, minimize_near};
 use crate::{DiagnoseConfig, DiagnoseError};
 
 use super::design::{ModelFit, Term, as_refs, chi2_of, fit_model, fitted_with};
@@ -77,6 +77,19 @@ fn try_candidate(
     weights: &Weights,
     before: &[Vec3],
 ) -> Candidate {
+    try_candidate_from(ctx, terms, effect, weights, before, None)
+}
+
+/// [`try_candidate`], its search started `from` these parameters where given (a richer form
+/// of an effect from the catalog form's optimum) rather than over its whole range.
+fn try_candidate_from(
+    ctx: &Context,
+    terms: &[Term],
+    effect: &dyn Effect,
+    weights: &Weights,
+    before: &[Vec3],
+    from: Option<&[f64]>,
+) -> Candidate {
     let base = as_refs(terms);
     fn with_theta<'a>(
         base: &[(&'a dyn Effect, &'a [f64])],
@@ -87,14 +100,20 @@ fn try_candidate(
         all.push((effect, theta));
         all
     }
-    let Some(opt) = minimize(&effect.search(ctx), |theta| {
+    let chi2 = |theta: &[f64]| {
         chi2_of(
             ctx,
             &with_theta(&base, effect, theta),
             ctx.command_lead,
             weights,
         )
-    }) else {
+    };
+    let searches = effect.search(ctx);
+    let found = match from {
+        Some(from) => minimize_near(&searches, Some(from), chi2),
+        None => minimize(&searches, chi2),
+    };
+    let Some(opt) = found else {
         return Candidate::not_fitted(
             effect,
             "cannot be fitted on this recording (its regressors are degenerate here)",
@@ -121,6 +140,65 @@ fn try_candidate(
         },
         fitted: Some((opt.theta, opt.sd, fitted)),
     }
+}
+
+/// Where a candidate's gain is significant at `threshold` and its effect has a richer form on
+/// this recording ([`Effect::richer`]), fits that form beside it: the richer form joins the
+/// round's candidates (`open` and `tried`) only where its own held-out gain beyond the
+/// catalog's form is significant at the same threshold, so that freedom the data do not need
+/// does not cost the parameters' determination. Where it joins, its larger gain ranks it
+/// first, and the catalog's form stays for the case that it does not replicate. Returns the
+/// results of the forms refused, with why, for the round's record. A form `refused` (at an
+/// edge in an earlier round) is not tried again.
+#[allow(clippy::too_many_arguments)]
+fn try_richer_forms(
+    ctx: &Context,
+    terms: &[Term],
+    open: &mut Vec<&dyn Effect>,
+    tried: &mut Vec<Candidate>,
+    w: &Weights,
+    before: &[Vec3],
+    threshold: f64,
+    refused: impl Fn(&dyn Effect) -> bool,
+) -> Vec<CandidateResult> {
+    let y = &ctx.rec.mag_ut;
+    let mut others = Vec::new();
+    for i in 0..tried.len() {
+        let significant = tried[i].result.p_value.is_some_and(|p| p < threshold)
+            && tried[i].result.improvement.is_some_and(|g| g > 0.0);
+        let Some(richer) = open[i].richer(ctx).filter(|r| significant && !refused(*r)) else {
+            continue;
+        };
+        let form = richer.variant().unwrap_or("richer");
+        let from = tried[i]
+            .fitted
+            .as_ref()
+            .map(|(theta, _, _)| theta.as_slice());
+        let mut rich = try_candidate_from(ctx, terms, richer, w, before, from);
+        let (Some((_, _, plain_fit)), Some((_, _, rich_fit))) = (&tried[i].fitted, &rich.fitted)
+        else {
+            rich.result.note = Some(format!("refused: its form `{form}` cannot be fitted here"));
+            others.push(rich.result);
+            continue;
+        };
+        let (plain_after, rich_after) = (plain_fit.residuals(y), rich_fit.residuals(y));
+        let blocks = block_improvements(&plain_after, &rich_after, w, ctx.split);
+        let gain = blocks.iter().sum::<f64>() / blocks.len().max(1) as f64;
+        let p = gain_p_value(&blocks, &plain_after, &rich_after, w, ctx.split).unwrap_or(1.0);
+        if gain > 0.0 && p < threshold {
+            tried[i].result.note = Some(format!(
+                "its form `{form}` lowers the held-out error beyond it (p = {p:.2e}) and is tried first"
+            ));
+            open.push(richer);
+            tried.push(rich);
+        } else {
+            rich.result.note = Some(format!(
+                "refused: its form `{form}` does not lower the held-out error significantly beyond the catalog's (p = {p:.2e})"
+            ));
+            others.push(rich.result);
+        }
+    }
+    others
 }
 
 /// How far, in standard uncertainties, a fitted stand constant must lie from the stated value
@@ -516,7 +594,8 @@ pub(crate) fn forward_search<'e>(
     let mut calibrating = true;
     let mut unchanged: Vec<Candidate> = Vec::new();
     // Findings whose refined parameters ran to the edge of their range: not tried again.
-    let mut indeterminate: Vec<&str> = Vec::new();
+    // By form: a richer form refused at an edge leaves the catalog's form to be tried.
+    let mut indeterminate: Vec<(&str, Option<&str>)> = Vec::new();
     let mut withdrawn: Vec<String> = Vec::new();
     while terms.len() < cfg.max_terms {
         let model = latest.as_ref().unwrap_or(&base.model);
@@ -540,7 +619,7 @@ pub(crate) fn forward_search<'e>(
             .iter()
             .map(|e| e.as_ref())
             .filter(|e| !terms.iter().any(|t| t.effect.name() == e.name()))
-            .filter(|e| !indeterminate.contains(&e.name()))
+            .filter(|e| !indeterminate.contains(&(e.name(), e.variant())))
             .collect();
         // The stand constants nobody stated are calibrated first, in rounds of their own: a
         // calibration is part of the baseline every finding is measured against, and a round
@@ -577,6 +656,14 @@ pub(crate) fn forward_search<'e>(
         }
         let k = tried.iter().filter(|c| c.fitted.is_some()).count().max(1);
         let threshold = cfg.significance / k as f64;
+        let others = if calibration_round {
+            Vec::new()
+        } else {
+            let refused = |e: &dyn Effect| indeterminate.contains(&(e.name(), e.variant()));
+            try_richer_forms(
+                shared, &terms, &mut open, &mut tried, w, &before, threshold, refused,
+            )
+        };
         let mut significant: Vec<usize> = (0..tried.len())
             .filter(|_| structured)
             .filter(|&i| tried[i].result.p_value.is_some_and(|p| p < threshold))
@@ -627,7 +714,11 @@ pub(crate) fn forward_search<'e>(
         }
         let round = Round {
             threshold,
-            candidates: tried.iter().map(|c| c.result.clone()).collect(),
+            candidates: tried
+                .iter()
+                .map(|c| c.result.clone())
+                .chain(others)
+                .collect(),
             accepted: best.as_ref().map(|(i, _)| open[*i].name().to_string()),
             whiteness_p: Some(white),
         };
@@ -706,7 +797,7 @@ pub(crate) fn forward_search<'e>(
                 open[i].name(),
                 why
             ));
-            indeterminate.push(gone.effect.name());
+            indeterminate.push((gone.effect.name(), gone.effect.variant()));
             refine(ctx, &mut terms, w);
         }
         if let Some(why) = refused {
@@ -719,8 +810,12 @@ pub(crate) fn forward_search<'e>(
             round.accepted = None;
             round.candidates[i].note = Some(format!("refused: {why}"));
             rounds.push(round);
-            indeterminate.push(open[i].name());
+            indeterminate.push((open[i].name(), open[i].variant()));
             calibrating = was_calibrating;
+            // The model is as it was before this round: the other candidates' fits hold for
+            // the round tried again (a richer form's catalog form among them).
+            tried.remove(i);
+            unchanged = tried;
             continue;
         }
         if withdrawn.len() > before_acceptance.withdrawn {
