@@ -123,6 +123,12 @@ pub fn cases() -> Vec<Case> {
         ),
         case("battery sag", vec![Effect::BatterySag], true, false),
         case(
+            "battery sag, bat_v not logged",
+            vec![Effect::BatterySag],
+            false,
+            false,
+        ),
+        case(
             "dead zone 0.25 (stated 0.12)",
             vec![Effect::DeadZone { actual: 0.25 }],
             false,

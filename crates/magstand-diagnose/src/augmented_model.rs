@@ -12,7 +12,9 @@
 //!                                         // in older files: every key counts as stated)
 //!   "command_lead": 0.5,                  // when within a row interval a command change acts
 //!   "block_s": 2.0, "holdout_every": 3,   // the diagnosis's time blocks
-//!   "effects": [{"name": "current_lag", "theta": [0.3]}, ...],   // in order of acceptance
+//!   "effects": [{"name": "current_lag", "theta": [0.3]}, ...],   // in order of acceptance;
+//!                                         // "variant": "free_discharge" where an effect's
+//!                                         // richer form was kept (absent: the catalog's)
 //!   "columns": ["reference", "driven", "speed^1", ...],          // regressor names
 //!   "coefficients": [[x, y, z], ...],     // µT per unit of each column
 //!   "noise": {                            // optional (absent in older files)
