@@ -9,28 +9,30 @@ use crate::optimize::{Search, minimize};
 /// The supply is a battery whose voltage falls with the charge drawn and under load.
 ///
 /// The catalog's form replays the nominal motor on a LiPo pack. Where no voltage is logged,
-/// a richer form ([`Effect::richer`]) also frees the discharge's shape and the current's
-/// sensitivity to the voltage ([`discharge_columns`]); it is kept only where it lowers the
-/// held-out error significantly beyond the catalog's form.
+/// richer forms ([`Effect::richer`]) also free the discharge's shape and the current's
+/// sensitivity to the voltage ([`discharge_columns`]), to first and then to second order in
+/// the voltage's change; each is kept only where it lowers the held-out error significantly
+/// beyond the form before it.
 pub struct BatterySag {
-    free_discharge: bool,
+    /// 0 for the catalog's form; else the order in the voltage's change to which the
+    /// discharge's shape and the current's sensitivity to it are free.
+    free_order: u8,
 }
 
 impl BatterySag {
     /// The catalog's form: the nominal motor on a LiPo pack.
-    pub const NOMINAL: BatterySag = BatterySag {
-        free_discharge: false,
-    };
+    pub const NOMINAL: BatterySag = BatterySag { free_order: 0 };
 }
 
-/// The richer form: the discharge's shape and the current's sensitivity to it free.
-static FREE_DISCHARGE: BatterySag = BatterySag {
-    free_discharge: true,
-};
+/// The richer forms, first and second order, with their names in a model file.
+static FREE_DISCHARGE: [(BatterySag, &str); 2] = [
+    (BatterySag { free_order: 1 }, "free_discharge"),
+    (BatterySag { free_order: 2 }, "free_discharge_second_order"),
+];
 
-/// The richer form ([`FREE_DISCHARGE`]), for a model file that names it.
-pub(crate) fn free_discharge() -> &'static dyn Effect {
-    &FREE_DISCHARGE
+/// The richer forms ([`FREE_DISCHARGE`]), for a model file that names one.
+pub(crate) fn free_discharge() -> impl Iterator<Item = &'static dyn Effect> {
+    FREE_DISCHARGE.iter().map(|(form, _)| form as &dyn Effect)
 }
 
 nonlinear_params! {
@@ -142,13 +144,17 @@ impl Effect for BatterySag {
         "battery_sag"
     }
     fn variant(&self) -> Option<&'static str> {
-        self.free_discharge.then_some(FREE_DISCHARGE_VARIANT)
+        let k = usize::from(self.free_order.checked_sub(1)?);
+        FREE_DISCHARGE.get(k).map(|(_, name)| *name)
     }
     fn richer(&self, ctx: &Context) -> Option<&'static dyn Effect> {
         // With `bat_v` the voltage is the log's; a flight follows its logged current,
         // whatever the voltage did to it.
         let unlogged = ctx.rec.bat_v.is_none() && !ctx.follow_recorded_current;
-        (unlogged && !self.free_discharge).then_some(&FREE_DISCHARGE)
+        let (next, _) = FREE_DISCHARGE
+            .get(usize::from(self.free_order))
+            .filter(|_| unlogged)?;
+        Some(next)
     }
     fn explanation(&self) -> &'static str {
         "The battery voltage falls with the charge drawn and sags under load, so at a fixed \
@@ -191,7 +197,9 @@ impl Effect for BatterySag {
         // each of them times the change enters with a free gain.
         let Some(v) = ctx.rec.bat_v.as_deref() else {
             return match Battery::from_slice(theta) {
-                Some(b) if self.free_discharge => discharge_columns(ctx, trace, law, b.capacity_ah),
+                Some(b) if self.free_order > 0 => {
+                    discharge_columns(ctx, trace, law, b.capacity_ah, self.free_order)
+                }
                 _ => Vec::new(),
             };
         };
@@ -276,6 +284,7 @@ fn discharge_columns(
     trace: &Trace,
     law: &[(&str, &[f64])],
     capacity_ah: f64,
+    order: u8,
 ) -> Vec<(String, Vec<f64>)> {
     let (_, start_charge) = pack(ctx);
     if !(capacity_ah > 0.0) {
@@ -301,24 +310,33 @@ fn discharge_columns(
         shapes[0].push((lipo_cell_ocv_v(soc) - start_v) / start_v);
         shapes[1].push((straight(soc) - straight(start_charge)) / start_v);
     }
-    [LIPO_DISCHARGE, STRAIGHT_DISCHARGE]
-        .into_iter()
-        .zip(shapes)
-        .flat_map(|(prefix, shape)| {
+    // To second order, each shape's square too (a pack's voltage falls by a fifth or more
+    // over a run that empties it, and a current linear in the voltage, replayed through the
+    // nominal motor's quadratic one, leaves the square of that change).
+    let powers = if order >= 2 { 2 } else { 1 };
+    (1..=powers)
+        .flat_map(|power| {
+            [LIPO_DISCHARGE, STRAIGHT_DISCHARGE]
+                .into_iter()
+                .zip(&shapes)
+                .map(move |(prefix, shape)| (prefix, shape, power))
+        })
+        .flat_map(|(prefix, shape, power)| {
+            let order = if power == 1 { "" } else { "_squared" };
             law.iter()
                 .map(|(name, law)| {
                     (
-                        format!("{prefix}_x_{name}"),
-                        law.iter().zip(&shape).map(|(x, d)| x * d).collect(),
+                        format!("{prefix}{order}_x_{name}"),
+                        law.iter()
+                            .zip(shape)
+                            .map(|(x, d)| x * d.powi(power))
+                            .collect(),
                     )
                 })
                 .collect::<Vec<_>>()
         })
         .collect()
 }
-
-/// The richer form's name in a model file ([`Effect::variant`]).
-const FREE_DISCHARGE_VARIANT: &str = "free_discharge";
 
 /// Prefix of a battery's columns on the LiPo curve's discharge ([`discharge_columns`]).
 const LIPO_DISCHARGE: &str = "lipo_discharge";

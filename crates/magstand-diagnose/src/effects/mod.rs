@@ -187,7 +187,8 @@ pub trait Effect: Sync + Send {
 
     /// A richer form of this effect on this recording, with more freedom where the stand's
     /// physics is not stated. It is tried only where this form's gain is significant, and
-    /// kept only where its own held-out gain beyond this form's is.
+    /// kept only where its own held-out gain beyond this form's is; it may have a richer form
+    /// of its own, tried the same way beyond it.
     fn richer(&self, _ctx: &Context) -> Option<&'static dyn Effect> {
         None
     }
@@ -333,9 +334,9 @@ pub(crate) fn find(name: &str, variant: Option<&str>) -> Option<&'static dyn Eff
             .iter()
             .find(|e| e.name() == name)
             .map(|e| e.as_ref()),
-        Some(v) => [battery_sag::free_discharge()]
-            .into_iter()
-            .find(|e| e.name() == name && e.variant() == Some(v)),
+        Some(v) => {
+            battery_sag::free_discharge().find(|e| e.name() == name && e.variant() == Some(v))
+        }
     }
 }
 
@@ -673,8 +674,10 @@ mod tests {
             let found = find(e.name(), None).map(|f| (f.name(), f.variant()));
             assert_eq!(found, Some((e.name(), None)), "effect {}", e.name());
         }
-        let rich = find("battery_sag", Some("free_discharge")).map(|f| (f.name(), f.variant()));
-        assert_eq!(rich, Some(("battery_sag", Some("free_discharge"))));
+        for form in ["free_discharge", "free_discharge_second_order"] {
+            let rich = find("battery_sag", Some(form)).map(|f| (f.name(), f.variant()));
+            assert_eq!(rich, Some(("battery_sag", Some(form))));
+        }
         assert!(find("battery_sag", Some("no_such_form")).is_none());
         assert!(find("thermal_drift", Some("free_discharge")).is_none());
         assert!(find("no_such_effect", None).is_none());

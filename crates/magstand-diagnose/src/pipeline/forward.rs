@@ -144,12 +144,13 @@ fn try_candidate_from(
 
 /// Where a candidate's gain is significant at `threshold` and its effect has a richer form on
 /// this recording ([`Effect::richer`]), fits that form beside it: the richer form joins the
-/// round's candidates (`open` and `tried`) only where its own held-out gain beyond the
-/// catalog's form is significant at the same threshold, so that freedom the data do not need
-/// does not cost the parameters' determination. Where it joins, its larger gain ranks it
-/// first, and the catalog's form stays for the case that it does not replicate. Returns the
-/// results of the forms refused, with why, for the round's record. A form `refused` (at an
-/// edge in an earlier round) is not tried again.
+/// round's candidates (`open` and `tried`) only where its own held-out gain beyond the form
+/// before it is significant at the same threshold (a form that joins has its own richer form
+/// tried the same way), so that freedom the data do not need does not cost the parameters'
+/// determination. Where it joins, its larger gain ranks it first, and the forms before it
+/// stay for the case that it does not replicate. Returns the results of the forms refused,
+/// with why, for the round's record. A form `refused` (at an edge in an earlier round) is not
+/// tried again.
 #[allow(clippy::too_many_arguments)]
 fn try_richer_forms(
     ctx: &Context,
@@ -163,7 +164,11 @@ fn try_richer_forms(
 ) -> Vec<CandidateResult> {
     let y = &ctx.rec.mag_ut;
     let mut others = Vec::new();
-    for i in 0..tried.len() {
+    // A form that joins goes to the end of `tried`, where its own richer form is tried in turn.
+    let mut next = 0;
+    while next < tried.len() {
+        let i = next;
+        next += 1;
         let significant = tried[i].result.p_value.is_some_and(|p| p < threshold)
             && tried[i].result.improvement.is_some_and(|g| g > 0.0);
         let Some(richer) = open[i].richer(ctx).filter(|r| significant && !refused(*r)) else {
@@ -177,7 +182,7 @@ fn try_richer_forms(
         let mut rich = try_candidate_from(ctx, terms, richer, w, before, from);
         let (Some((_, _, plain_fit)), Some((_, _, rich_fit))) = (&tried[i].fitted, &rich.fitted)
         else {
-            rich.result.note = Some(format!("refused: its form `{form}` cannot be fitted here"));
+            rich.result.note = Some(format!("refused: the form `{form}` cannot be fitted here"));
             others.push(rich.result);
             continue;
         };
@@ -187,13 +192,13 @@ fn try_richer_forms(
         let p = gain_p_value(&blocks, &plain_after, &rich_after, w, ctx.split).unwrap_or(1.0);
         if gain > 0.0 && p < threshold {
             tried[i].result.note = Some(format!(
-                "its form `{form}` lowers the held-out error beyond it (p = {p:.2e}) and is tried first"
+                "the form `{form}` lowers the held-out error beyond this one (p = {p:.2e}) and is tried first"
             ));
             open.push(richer);
             tried.push(rich);
         } else {
             rich.result.note = Some(format!(
-                "refused: its form `{form}` does not lower the held-out error significantly beyond the catalog's (p = {p:.2e})"
+                "refused: the form `{form}` does not lower the held-out error significantly beyond the form before it (p = {p:.2e})"
             ));
             others.push(rich.result);
         }
