@@ -421,14 +421,8 @@ mod tests {
             ..Default::default()
         });
         let ctx = stand.context();
-        let catalog = crate::effects::catalog();
-        let effect = |name: &str| {
-            catalog
-                .iter()
-                .find(|e| e.name() == name)
-                .map(|e| e.as_ref())
-                .unwrap_or_else(|| panic!("no {name}"))
-        };
+        let effect =
+            |name: &str| crate::effects::find(name, None).unwrap_or_else(|| panic!("no {name}"));
         let (lag, battery) = (effect("current_lag"), effect("battery_sag"));
         let lagged = build(&ctx, &[(lag, &[0.8]), (battery, &[])]);
         let plain = build(&ctx, &[(battery, &[])]);

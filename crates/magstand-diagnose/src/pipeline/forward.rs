@@ -844,7 +844,7 @@ pub(crate) fn forward_search<'e>(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::effects::{TestStand, catalog};
+    use crate::effects::{TestStand, find};
     use crate::locate::Location;
 
     /// After a withdrawal, every finding from the first place it emptied on is restated on the
@@ -877,14 +877,7 @@ mod tests {
             ..Default::default()
         });
         let ctx = stand.context();
-        let effects = catalog();
-        let effect = |name: &str| {
-            effects
-                .iter()
-                .find(|e| e.name() == name)
-                .map(|e| e.as_ref())
-                .unwrap_or_else(|| panic!("no {name}"))
-        };
+        let effect = |name: &str| find(name, None).unwrap_or_else(|| panic!("no {name}"));
         // Each term at the middle of its search range.
         let term = |name: &str| {
             let e = effect(name);
