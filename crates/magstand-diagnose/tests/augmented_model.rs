@@ -122,4 +122,17 @@ fn the_augmented_model_predicts_a_new_recording_of_the_same_stand() {
     six.thr.push(six.thr[0].clone());
     let err = model.dist_column(&six, "hexa.csv").unwrap_err().to_string();
     assert!(err.contains("hexa.csv") && err.contains("6 motor"), "{err}");
+
+    // A form of an effect this magstand does not know (a file written by another version, or
+    // edited) is refused by name, as an unknown effect is.
+    let mut unknown_form = model.clone();
+    unknown_form.effects[0].variant = Some("no_such_form".into());
+    let err = unknown_form
+        .dist_column(&new, "new.csv")
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("no_such_form") && err.contains("current_lag"),
+        "{err}"
+    );
 }
