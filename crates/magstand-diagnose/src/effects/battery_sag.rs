@@ -314,26 +314,27 @@ fn discharge_columns(
     // over a run that empties it, and a current linear in the voltage, replayed through the
     // nominal motor's quadratic one, leaves the square of that change).
     let powers = if order >= 2 { 2 } else { 1 };
-    (1..=powers)
+    let shapes: Vec<(String, Vec<f64>)> = (1..=powers)
         .flat_map(|power| {
+            let suffix = if power == 1 { "" } else { "_squared" };
             [LIPO_DISCHARGE, STRAIGHT_DISCHARGE]
                 .into_iter()
                 .zip(&shapes)
-                .map(move |(prefix, shape)| (prefix, shape, power))
-        })
-        .flat_map(|(prefix, shape, power)| {
-            let order = if power == 1 { "" } else { "_squared" };
-            law.iter()
-                .map(|(name, law)| {
-                    (
-                        format!("{prefix}{order}_x_{name}"),
-                        law.iter()
-                            .zip(shape)
-                            .map(|(x, d)| x * d.powi(power))
-                            .collect(),
-                    )
+                .map(move |(prefix, shape)| {
+                    let powered = shape.iter().map(|d| if power == 1 { *d } else { d * d });
+                    (format!("{prefix}{suffix}"), powered.collect())
                 })
-                .collect::<Vec<_>>()
+        })
+        .collect();
+    shapes
+        .iter()
+        .flat_map(|(prefix, shape)| {
+            law.iter().map(move |(name, law)| {
+                (
+                    format!("{prefix}_x_{name}"),
+                    law.iter().zip(shape).map(|(x, d)| x * d).collect(),
+                )
+            })
         })
         .collect()
 }
