@@ -290,11 +290,9 @@ fn discharge_columns(
     if !(capacity_ah > 0.0) {
         return Vec::new();
     }
-    let straight = |soc: f64| {
-        let (empty, full) = (lipo_cell_ocv_v(0.0), lipo_cell_ocv_v(1.0));
-        empty + (full - empty) * soc.clamp(0.0, 1.0)
-    };
-    let start_v = lipo_cell_ocv_v(start_charge);
+    let (empty, full) = (lipo_cell_ocv_v(0.0), lipo_cell_ocv_v(1.0));
+    let straight = |soc: f64| empty + (full - empty) * soc.clamp(0.0, 1.0);
+    let (start_v, straight_start_v) = (lipo_cell_ocv_v(start_charge), straight(start_charge));
     // Charge drawn by the trapezoid rule over the rows (the replay's substeps are not kept).
     let mut drawn_ah = 0.0;
     let mut shapes = [
@@ -308,7 +306,7 @@ fn discharge_columns(
         }
         let soc = start_charge - drawn_ah / capacity_ah;
         shapes[0].push((lipo_cell_ocv_v(soc) - start_v) / start_v);
-        shapes[1].push((straight(soc) - straight(start_charge)) / start_v);
+        shapes[1].push((straight(soc) - straight_start_v) / start_v);
     }
     // To second order, each shape's square too (a pack's voltage falls by a fifth or more
     // over a run that empties it, and a current linear in the voltage, replayed through the

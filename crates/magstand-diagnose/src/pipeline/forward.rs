@@ -14,7 +14,8 @@ use crate::{DiagnoseConfig, DiagnoseError};
 
 use super::design::{ModelFit, Term, as_refs, chi2_of, fit_model, fitted_with};
 use super::gain::{
-    block_improvements, block_improvements_on, gain_p_value, holdout_rmse, standardized, whiteness,
+    block_improvements, block_improvements_on, gain_p_value, holdout_rmse, mean_gain, standardized,
+    whiteness,
 };
 use super::refine::refine;
 
@@ -129,7 +130,7 @@ fn try_candidate_from(
     };
     let after = fitted.residuals(&ctx.rec.mag_ut);
     let blocks = block_improvements(before, &after, weights, ctx.split);
-    let improvement = blocks.iter().sum::<f64>() / blocks.len().max(1) as f64;
+    let improvement = mean_gain(&blocks);
     Candidate {
         result: CandidateResult {
             name: effect.name().into(),
@@ -140,6 +141,11 @@ fn try_candidate_from(
         },
         fitted: Some((opt.theta, opt.sd, fitted)),
     }
+}
+
+/// Whether a candidate's held-out gain is positive and significant at `threshold`.
+fn significant(c: &CandidateResult, threshold: f64) -> bool {
+    c.p_value.is_some_and(|p| p < threshold) && c.improvement.is_some_and(|g| g > 0.0)
 }
 
 /// Where a candidate's gain is significant at `threshold` and its effect has a richer form on
@@ -169,9 +175,10 @@ fn try_richer_forms(
     while next < tried.len() {
         let i = next;
         next += 1;
-        let significant = tried[i].result.p_value.is_some_and(|p| p < threshold)
-            && tried[i].result.improvement.is_some_and(|g| g > 0.0);
-        let Some(richer) = open[i].richer(ctx).filter(|r| significant && !refused(*r)) else {
+        let Some(richer) = open[i]
+            .richer(ctx)
+            .filter(|r| significant(&tried[i].result, threshold) && !refused(*r))
+        else {
             continue;
         };
         let form = richer.variant().unwrap_or("richer");
@@ -188,7 +195,7 @@ fn try_richer_forms(
         };
         let (plain_after, rich_after) = (plain_fit.residuals(y), rich_fit.residuals(y));
         let blocks = block_improvements(&plain_after, &rich_after, w, ctx.split);
-        let gain = blocks.iter().sum::<f64>() / blocks.len().max(1) as f64;
+        let gain = mean_gain(&blocks);
         let p = gain_p_value(&blocks, &plain_after, &rich_after, w, ctx.split).unwrap_or(1.0);
         if gain > 0.0 && p < threshold {
             tried[i].result.note = Some(format!(
@@ -358,7 +365,7 @@ fn replication_failure(
             ..ctx.split.clone()
         };
         let blocks = block_improvements(before, &after, weights, &split);
-        let gain = blocks.iter().sum::<f64>() / blocks.len().max(1) as f64;
+        let gain = mean_gain(&blocks);
         let p = gain_p_value(&blocks, before, &after, weights, &split);
         if !(gain > 0.0 && p.is_some_and(|p| p < cfg.significance)) {
             return Some(format!(
@@ -671,8 +678,7 @@ pub(crate) fn forward_search<'e>(
         };
         let mut significant: Vec<usize> = (0..tried.len())
             .filter(|_| structured)
-            .filter(|&i| tried[i].result.p_value.is_some_and(|p| p < threshold))
-            .filter(|&i| tried[i].result.improvement.is_some_and(|g| g > 0.0))
+            .filter(|&i| significant(&tried[i].result, threshold))
             .collect();
         significant.sort_by(|&a, &b| {
             tried[b]

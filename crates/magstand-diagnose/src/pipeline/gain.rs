@@ -58,6 +58,11 @@ pub(crate) fn block_improvements_on(
     out.into_iter().map(|(_, s, n)| s / n).collect()
 }
 
+/// The mean of per-block improvements ([`block_improvements`]): the gain a candidate reports.
+pub(crate) fn mean_gain(blocks: &[f64]) -> f64 {
+    blocks.iter().sum::<f64>() / blocks.len().max(1) as f64
+}
+
 /// The one-sided p-value of a held-out gain from `before` to `after`, given its per-block
 /// improvements `blocks`: three views of the same gain, Bonferroni-combined. The t-test sees
 /// gains spread over all blocks, the signed-rank test gains confined to the blocks with steps,
