@@ -57,10 +57,6 @@ impl Case {
         if mode == Mode::Unstated {
             names.remove("dead_zone");
         }
-        // A battery whose voltage is not logged cannot be told from the stand's current law.
-        if !self.log_bat_v {
-            names.remove("battery_sag");
-        }
         names
     }
 }

@@ -333,47 +333,108 @@ fn a_sagging_battery_is_named_whatever_its_current_law_makes_of_the_voltage() {
 /// refused, is the concealed suite's (`diagnosis_concealed.rs`).
 #[test]
 fn a_battery_without_bat_v_whose_discharge_is_not_a_lipos_is_named_alone() {
-    use magstand_tests::independent::{Mode, run_case};
-    let case = suite_case("battery sag, bat_v not logged");
+    use magstand_tests::independent::Mode;
     for (mode, seed) in [(Mode::Unstated, 2), (Mode::Stated, 1)] {
-        let o = run_case(&case, mode, seed);
-        assert_eq!(
-            o.verdict,
-            ["battery_sag"],
-            "{mode:?} seed {seed}: {}",
-            o.diagnosis.summary()
-        );
-        // The model file names the form kept, and predicts the disturbance with it when read
-        // back (a file read with the catalog's form would lack its columns, and be refused).
-        let model = o.diagnosis.model.clone().expect("a model");
-        let form = model
-            .effects
-            .iter()
-            .find(|t| t.name == "battery_sag")
-            .and_then(|t| t.variant.clone());
-        assert!(
-            form.as_deref()
-                .is_some_and(|f| f.starts_with("free_discharge")),
-            "{mode:?} seed {seed}: {:?}",
-            model.effects
-        );
-        let path = std::env::temp_dir().join(format!(
-            "magstand-free-discharge-{}.json",
-            std::process::id()
-        ));
-        model.save(&path).unwrap();
-        let loaded = magstand_diagnose::AugmentedModel::load(&path);
-        std::fs::remove_file(&path).ok();
-        let (rec, truth) = magstand_tests::independent::recording(&case, seed);
-        let error_ut = rmse_ut(
-            &loaded.unwrap().dist_column(&rec, "seen.csv").unwrap(),
-            &truth,
-        );
-        assert!(
-            error_ut.iter().all(|e| *e < 0.1),
-            "{mode:?} seed {seed}: the model file ({form:?}) predicts the disturbance within {error_ut:?} µT"
-        );
+        battery_is_named_alone_in_the_form(&Stand::default(), mode, seed, "free_discharge");
     }
+}
+
+/// Regression: the generator's held-out hexacopter (6S, 4 Ah, 0.03 ohm, the open-circuit
+/// voltage straight in the charge), `bat_v` not logged, draws under 3 Ah in its run: the pack
+/// neither empties nor crosses a bend of its curve. Its capacity then only scales the
+/// voltage's fall, and its resistance's sag follows the commands at once, which the
+/// calibrated current law holds: neither is identifiable, and every form that searched them
+/// ran to the edge of its range (resistance 0.003 ohm, capacity 30 Ah). Stated, every seed
+/// was `unexplained`; unstated, one of four was right. The form `drawn_charge` (the field's
+/// change at a command in proportion to the charge drawn, no constant of the pack) names it
+/// on all eight.
+#[test]
+fn a_battery_without_bat_v_that_the_run_neither_empties_nor_bends_is_named_without_its_constants() {
+    use magstand_tests::independent::Mode;
+    for (mode, seed) in [(Mode::Unstated, 2), (Mode::Stated, 1)] {
+        battery_is_named_alone_in_the_form(&Stand::held_out(), mode, seed, "drawn_charge");
+    }
+}
+
+/// Regression: the same hexacopter on a larger pack (8 Ah, 0.05 ohm), stated, seed 5. The
+/// catalog's LiPo replay fitted worse than the baseline on held-out rows (mean gain -5.7), so
+/// no richer form was tried beside it, and the recording was called `unexplained`. A form with
+/// no nonlinear parameters of its own is tried wherever the catalog's form was fitted: it
+/// cannot trade freedom against that form's parameters, and must still beat it.
+#[test]
+fn a_battery_whose_catalog_form_fits_worse_than_none_is_still_named() {
+    use magstand_standgen::Supply;
+    use magstand_tests::independent::Mode;
+    let stand = Stand {
+        battery: Supply::Battery {
+            cells: 6,
+            capacity_ah: 8.0,
+            resistance_ohm: 0.05,
+        },
+        ..Stand::held_out()
+    };
+    battery_is_named_alone_in_the_form(&stand, Mode::Stated, 5, "drawn_charge");
+}
+
+/// Regression: the default stand's battery without `bat_v`, stated, seed 3. The form
+/// `free_discharge` gained most, but its resistance refined to the lower end of its range
+/// (0.003 ohm: a sag under load that follows the commands is in the calibrated current law),
+/// so it was refused; the catalog's form in its place left `unexplained`, and a `dead_zone`
+/// took some of it. A resistance at its lowest stands for the same form without a sag under
+/// load, which is tried in its place and keeps the capacity.
+#[test]
+fn a_free_discharge_whose_resistance_runs_to_its_lowest_is_kept_without_a_sag() {
+    use magstand_tests::independent::Mode;
+    battery_is_named_alone_in_the_form(&Stand::default(), Mode::Stated, 3, "free_discharge_no_sag");
+}
+
+/// Asserts that the suite's battery without `bat_v` on `stand` is named alone, in a form whose
+/// name starts with `form`, and that the model file, written and read back, predicts the
+/// disturbance within 0.1 µT RMS on each axis.
+fn battery_is_named_alone_in_the_form(
+    stand: &Stand,
+    mode: magstand_tests::independent::Mode,
+    seed: u64,
+    form: &str,
+) {
+    use magstand_tests::independent::{recording_on, run_case_on};
+    let case = suite_case("battery sag, bat_v not logged");
+    let o = run_case_on(stand, &case, mode, seed);
+    assert_eq!(
+        o.verdict,
+        ["battery_sag"],
+        "{mode:?} seed {seed}: {}",
+        o.diagnosis.summary()
+    );
+    // The model file names the form kept, and predicts the disturbance with it when read
+    // back (a file read with the catalog's form would lack its columns, and be refused).
+    let model = o.diagnosis.model.clone().expect("a model");
+    let kept = model
+        .effects
+        .iter()
+        .find(|t| t.name == "battery_sag")
+        .and_then(|t| t.variant.clone());
+    assert!(
+        kept.as_deref().is_some_and(|f| f.starts_with(form)),
+        "{mode:?} seed {seed}: expected the form {form}, got {:?}",
+        model.effects
+    );
+    let path = std::env::temp_dir().join(format!(
+        "magstand-battery-form-{form}-{mode:?}-{}.json",
+        std::process::id()
+    ));
+    model.save(&path).unwrap();
+    let loaded = magstand_diagnose::AugmentedModel::load(&path);
+    std::fs::remove_file(&path).ok();
+    let (rec, truth) = recording_on(stand, &case, seed);
+    let error_ut = rmse_ut(
+        &loaded.unwrap().dist_column(&rec, "seen.csv").unwrap(),
+        &truth,
+    );
+    assert!(
+        error_ut.iter().all(|e| *e < 0.1),
+        "{mode:?} seed {seed}: the model file ({kept:?}) predicts the disturbance within {error_ut:?} µT"
+    );
 }
 
 /// Issue 18's accuracy goal on data magstand did not make: the physics model fitted to one

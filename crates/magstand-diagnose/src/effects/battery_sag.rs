@@ -11,28 +11,98 @@ use crate::optimize::{Search, minimize};
 /// The catalog's form replays the nominal motor on a LiPo pack. Where no voltage is logged,
 /// richer forms ([`Effect::richer`]) also free the discharge's shape and the current's
 /// sensitivity to the voltage ([`discharge_columns`]), to first and then to second order in
-/// the voltage's change; each is kept only where it lowers the held-out error significantly
-/// beyond the form before it.
+/// the voltage's change, or drop the pack's constants altogether ([`drawn_charge_columns`]);
+/// each is kept only where it lowers the held-out error significantly beyond the catalog's.
+/// A free form whose resistance runs to the lower end of its range stands for the same form
+/// without a sag under load ([`Effect::edge_limit`]).
 pub struct BatterySag {
-    /// 0 for the catalog's form; else the order in the voltage's change to which the
-    /// discharge's shape and the current's sensitivity to it are free.
-    free_order: u8,
+    form: Form,
+}
+
+/// The forms of [`BatterySag`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Form {
+    /// The catalog's: the nominal motor on a LiPo pack of searched resistance and capacity.
+    Lipo,
+    /// The discharge's shape and the current's sensitivity to it free, to `order` in the
+    /// voltage's change, at a searched capacity and, where `sag`, resistance. Without: a sag
+    /// under load that follows the commands at once is a function of them, which the
+    /// calibrated current law holds, so the resistance may not be identifiable.
+    FreeDischarge {
+        /// Order in the voltage's change.
+        order: u8,
+        /// Whether the resistance is searched.
+        sag: bool,
+    },
+    /// The field's change at a command proportional to the charge drawn, with no constant of
+    /// the pack: where the run neither empties it nor crosses the bends of its curve, its
+    /// resistance and capacity are not identifiable without `bat_v`.
+    DrawnCharge,
 }
 
 impl BatterySag {
     /// The catalog's form: the nominal motor on a LiPo pack.
-    pub const NOMINAL: BatterySag = BatterySag { free_order: 0 };
+    pub const NOMINAL: BatterySag = BatterySag { form: Form::Lipo };
 }
 
-/// The richer forms, first and second order, with their names in a model file.
-static FREE_DISCHARGE: [(BatterySag, &str); 2] = [
-    (BatterySag { free_order: 1 }, "free_discharge"),
-    (BatterySag { free_order: 2 }, "free_discharge_second_order"),
+/// The richer forms, with their names in a model file.
+static RICHER_FORMS: [(BatterySag, &str); 5] = [
+    (
+        BatterySag {
+            form: Form::FreeDischarge {
+                order: 1,
+                sag: true,
+            },
+        },
+        "free_discharge",
+    ),
+    (
+        BatterySag {
+            form: Form::FreeDischarge {
+                order: 2,
+                sag: true,
+            },
+        },
+        "free_discharge_second_order",
+    ),
+    (
+        BatterySag {
+            form: Form::FreeDischarge {
+                order: 1,
+                sag: false,
+            },
+        },
+        "free_discharge_no_sag",
+    ),
+    (
+        BatterySag {
+            form: Form::FreeDischarge {
+                order: 2,
+                sag: false,
+            },
+        },
+        "free_discharge_no_sag_second_order",
+    ),
+    (
+        BatterySag {
+            form: Form::DrawnCharge,
+        },
+        "drawn_charge",
+    ),
 ];
 
-/// The richer forms ([`FREE_DISCHARGE`]), for a model file that names one.
-pub(crate) fn free_discharge() -> impl Iterator<Item = &'static dyn Effect> {
-    FREE_DISCHARGE.iter().map(|(form, _)| form as &dyn Effect)
+/// The richer forms ([`RICHER_FORMS`]), for a model file that names one.
+pub(crate) fn richer_forms() -> impl Iterator<Item = &'static dyn Effect> {
+    RICHER_FORMS.iter().map(|(form, _)| form as &dyn Effect)
+}
+
+/// The richer form `form` of [`RICHER_FORMS`].
+fn richer_form(form: Form) -> &'static dyn Effect {
+    RICHER_FORMS
+        .iter()
+        .find(|(b, _)| b.form == form)
+        .map(|(b, _)| b as &dyn Effect)
+        .expect("every richer form is listed")
 }
 
 nonlinear_params! {
@@ -114,6 +184,19 @@ fn set_battery(ctx: &Context, (cells, initial_charge): (u32, f64), s: &mut Scena
 }
 
 impl BatterySag {
+    /// The battery of searched parameters (or their uncertainties) `theta`: without a sag
+    /// under load, no resistance (zero, and its uncertainty the default's).
+    fn battery<T: Copy + Default>(&self, theta: &[T]) -> Option<Battery<T>> {
+        match (self.form, theta) {
+            (Form::FreeDischarge { sag: false, .. }, &[capacity_ah]) => Some(Battery {
+                internal_resistance_ohm: T::default(),
+                capacity_ah,
+            }),
+            (Form::FreeDischarge { sag: false, .. }, _) => None,
+            _ => Battery::from_slice(theta),
+        }
+    }
+
     /// With `bat_v` recorded, the battery that reproduces it best through the replayed
     /// currents (chi-square with a 10 mV voltage error).
     fn fit_to_recorded_voltage(
@@ -144,35 +227,68 @@ impl Effect for BatterySag {
         "battery_sag"
     }
     fn variant(&self) -> Option<&'static str> {
-        let k = usize::from(self.free_order.checked_sub(1)?);
-        FREE_DISCHARGE.get(k).map(|(_, name)| *name)
+        RICHER_FORMS
+            .iter()
+            .find(|(b, _)| b.form == self.form)
+            .map(|(_, name)| *name)
     }
-    fn richer(&self, ctx: &Context) -> Option<&'static dyn Effect> {
+    fn richer(&self, ctx: &Context) -> Vec<&'static dyn Effect> {
         // With `bat_v` the voltage is the log's; a flight follows its logged current,
         // whatever the voltage did to it.
-        let unlogged = ctx.rec.bat_v.is_none() && !ctx.follow_recorded_current;
-        let (next, _) = FREE_DISCHARGE
-            .get(usize::from(self.free_order))
-            .filter(|_| unlogged)?;
-        Some(next)
+        if ctx.rec.bat_v.is_some() || ctx.follow_recorded_current {
+            return Vec::new();
+        }
+        match self.form {
+            Form::Lipo => vec![
+                richer_form(Form::FreeDischarge {
+                    order: 1,
+                    sag: true,
+                }),
+                richer_form(Form::DrawnCharge),
+            ],
+            Form::FreeDischarge { order: 1, sag } => {
+                vec![richer_form(Form::FreeDischarge { order: 2, sag })]
+            }
+            Form::FreeDischarge { .. } | Form::DrawnCharge => Vec::new(),
+        }
+    }
+    fn edge_limit(&self, parameter: &str, lower: bool) -> Option<&'static dyn Effect> {
+        // The free forms' resistance at its lowest: no sag under load beyond what the
+        // calibrated current law holds (the capacity stays, where the run empties the pack or
+        // crosses a bend of its curve; where it does neither, `drawn_charge` stands for it).
+        match self.form {
+            Form::FreeDischarge { order, sag: true }
+                if lower && parameter == RESISTANCE_SEARCH.name =>
+            {
+                Some(richer_form(Form::FreeDischarge { order, sag: false }))
+            }
+            _ => None,
+        }
     }
     fn explanation(&self) -> &'static str {
         "The battery voltage falls with the charge drawn and sags under load, so at a fixed \
          command the motor currents, and the field they make, drift down over a run."
     }
     fn parameters(&self) -> &'static [&'static str] {
-        Battery::NAMES
+        match self.form {
+            Form::DrawnCharge => &[],
+            Form::FreeDischarge { sag: false, .. } => &Battery::NAMES[1..],
+            _ => Battery::NAMES,
+        }
     }
     fn search(&self, ctx: &Context) -> Vec<Search> {
         if ctx.rec.bat_v.is_some() {
-            Vec::new()
-        } else {
-            vec![RESISTANCE_SEARCH, CAPACITY_SEARCH]
+            return Vec::new();
+        }
+        match self.form {
+            Form::DrawnCharge => Vec::new(),
+            Form::FreeDischarge { sag: false, .. } => vec![CAPACITY_SEARCH],
+            _ => vec![RESISTANCE_SEARCH, CAPACITY_SEARCH],
         }
     }
     fn apply(&self, ctx: &Context, s: &mut Scenario, theta: &[f64]) {
         if ctx.rec.bat_v.is_none()
-            && let Some(b) = Battery::from_slice(theta)
+            && let Some(b) = self.battery(theta)
         {
             set_battery(ctx, pack(ctx), s, b);
         }
@@ -196,10 +312,11 @@ impl Effect for BatterySag {
         // own columns (a law in powers of speed holds the current times its derivative), so
         // each of them times the change enters with a free gain.
         let Some(v) = ctx.rec.bat_v.as_deref() else {
-            return match Battery::from_slice(theta) {
-                Some(b) if self.free_order > 0 => {
-                    discharge_columns(ctx, trace, law, b.capacity_ah, self.free_order)
+            return match (self.form, self.battery(theta)) {
+                (Form::FreeDischarge { order, .. }, Some(b)) => {
+                    discharge_columns(ctx, trace, law, b.capacity_ah, order)
                 }
+                (Form::DrawnCharge, _) => drawn_charge_columns(trace, law),
                 _ => Vec::new(),
             };
         };
@@ -246,9 +363,14 @@ impl Effect for BatterySag {
     }
     fn switch_on(&self, ctx: &Context, s: &mut Scenario, f: &EffectFit) -> Vec<Param> {
         let pack = pack(ctx);
+        if self.form == Form::DrawnCharge {
+            // No constant of the pack is fitted (nor its cells, which only the supply's
+            // voltage would tell): the supply stays as stated.
+            return Vec::new();
+        }
         let cells = Param::new("cells", pack.0 as f64, None, "cells in series");
         let fitted = if ctx.rec.bat_v.is_none() {
-            Battery::from_slice(f.theta).zip(Battery::from_slice(f.theta_sd))
+            self.battery(f.theta).zip(self.battery(f.theta_sd))
         } else {
             self.fit_to_recorded_voltage(ctx, s)
         };
@@ -256,6 +378,12 @@ impl Effect for BatterySag {
             return Vec::new();
         };
         set_battery(ctx, pack, s, b);
+        let capacity = Param::new("capacity_ah", b.capacity_ah, sd.capacity_ah, "Ah");
+        if matches!(self.form, Form::FreeDischarge { sag: false, .. }) {
+            // The resistance was not fitted: whatever sag follows the commands at once is in
+            // the calibrated current law.
+            return vec![capacity, cells];
+        }
         vec![
             Param::new(
                 "internal_resistance_ohm",
@@ -263,7 +391,7 @@ impl Effect for BatterySag {
                 sd.internal_resistance_ohm,
                 "ohm",
             ),
-            Param::new("capacity_ah", b.capacity_ah, sd.capacity_ah, "Ah"),
+            capacity,
             cells,
         ]
     }
@@ -293,17 +421,11 @@ fn discharge_columns(
     let (empty, full) = (lipo_cell_ocv_v(0.0), lipo_cell_ocv_v(1.0));
     let straight = |soc: f64| empty + (full - empty) * soc.clamp(0.0, 1.0);
     let (start_v, straight_start_v) = (lipo_cell_ocv_v(start_charge), straight(start_charge));
-    // Charge drawn by the trapezoid rule over the rows (the replay's substeps are not kept).
-    let mut drawn_ah = 0.0;
     let mut shapes = [
         Vec::with_capacity(trace.t_s.len()),
         Vec::with_capacity(trace.t_s.len()),
     ];
-    for k in 0..trace.t_s.len() {
-        if k > 0 {
-            let dt_s = trace.t_s[k] - trace.t_s[k - 1];
-            drawn_ah += 0.5 * (trace.total_a[k] + trace.total_a[k - 1]) * dt_s / 3600.0;
-        }
+    for drawn_ah in charge_drawn_ah(trace) {
         let soc = start_charge - drawn_ah / capacity_ah;
         shapes[0].push((lipo_cell_ocv_v(soc) - start_v) / start_v);
         shapes[1].push((straight(soc) - straight_start_v) / start_v);
@@ -326,16 +448,52 @@ fn discharge_columns(
         .collect();
     shapes
         .iter()
-        .flat_map(|(prefix, shape)| {
-            law.iter().map(move |(name, law)| {
-                (
-                    format!("{prefix}_x_{name}"),
-                    law.iter().zip(shape).map(|(x, d)| x * d).collect(),
-                )
-            })
-        })
+        .flat_map(|(prefix, shape)| times_law(prefix, shape, law))
         .collect()
 }
+
+/// The charge the replay drew by each row, Ah, by the trapezoid rule over the rows (the
+/// replay's substeps are not kept).
+fn charge_drawn_ah(trace: &Trace) -> impl Iterator<Item = f64> + '_ {
+    let mut drawn_ah = 0.0;
+    (0..trace.t_s.len()).map(move |k| {
+        if k > 0 {
+            let dt_s = trace.t_s[k] - trace.t_s[k - 1];
+            drawn_ah += 0.5 * (trace.total_a[k] + trace.total_a[k - 1]) * dt_s / 3600.0;
+        }
+        drawn_ah
+    })
+}
+
+/// Each of the current law's columns times `shape`, named `{prefix}_x_{column}`.
+fn times_law<'a>(
+    prefix: &'a str,
+    shape: &'a [f64],
+    law: &'a [(&str, &[f64])],
+) -> impl Iterator<Item = (String, Vec<f64>)> + 'a {
+    law.iter().map(move |(name, law)| {
+        (
+            format!("{prefix}_x_{name}"),
+            law.iter().zip(shape).map(|(x, d)| x * d).collect(),
+        )
+    })
+}
+
+/// Without `bat_v`, where the run neither empties the pack nor crosses the bends of its
+/// curve, its open-circuit voltage falls about in proportion to the charge drawn, and its
+/// capacity only scales that fall, as the gains of [`discharge_columns`] do: it is not
+/// identifiable, nor is a resistance whose sag follows the commands at once (the calibrated
+/// current law holds that). To first order the field at a command then moves by the charge
+/// drawn (the replay's, on the stated supply) times a combination of the law's columns: each
+/// law column times the charge enters with a free gain, and no constant of the pack is
+/// searched.
+fn drawn_charge_columns(trace: &Trace, law: &[(&str, &[f64])]) -> Vec<(String, Vec<f64>)> {
+    let drawn: Vec<f64> = charge_drawn_ah(trace).collect();
+    times_law(DRAWN_CHARGE, &drawn, law).collect()
+}
+
+/// Prefix of a battery's columns on the charge drawn ([`drawn_charge_columns`]).
+const DRAWN_CHARGE: &str = "drawn_ah";
 
 /// Prefix of a battery's columns on the LiPo curve's discharge ([`discharge_columns`]).
 const LIPO_DISCHARGE: &str = "lipo_discharge";
@@ -343,6 +501,46 @@ const LIPO_DISCHARGE: &str = "lipo_discharge";
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A free form's resistance at its lowest stands for the same form without a sag, of the
+    /// same order; nothing else has a limit form, and the form without a sag searches the
+    /// capacity alone.
+    #[test]
+    fn a_resistance_at_its_lowest_stands_for_the_form_without_a_sag() {
+        for order in [1, 2] {
+            let with = BatterySag {
+                form: Form::FreeDischarge { order, sag: true },
+            };
+            let limit = with
+                .edge_limit("internal_resistance_ohm", true)
+                .and_then(|e| e.variant());
+            let expected = if order == 1 {
+                "free_discharge_no_sag"
+            } else {
+                "free_discharge_no_sag_second_order"
+            };
+            assert_eq!(limit, Some(expected), "order {order}");
+            assert!(with.edge_limit("internal_resistance_ohm", false).is_none());
+            assert!(with.edge_limit("capacity_ah", true).is_none());
+            let without = richer_form(Form::FreeDischarge { order, sag: false });
+            assert_eq!(without.parameters(), ["capacity_ah"], "order {order}");
+            assert!(without.edge_limit("capacity_ah", true).is_none());
+        }
+        assert!(
+            BatterySag::NOMINAL
+                .edge_limit("internal_resistance_ohm", true)
+                .is_none()
+        );
+        let no_sag = BatterySag {
+            form: Form::FreeDischarge {
+                order: 1,
+                sag: false,
+            },
+        };
+        let b = no_sag.battery(&[2.5]).expect("one capacity");
+        assert_eq!((b.internal_resistance_ohm, b.capacity_ah), (0.0, 2.5));
+        assert!(no_sag.battery(&[0.03, 2.5]).is_none());
+    }
 
     /// Regression: with `bat_v` logged, the battery reported beside `battery_sag` had the
     /// nominal 12 V supply's three cells, full, whatever the log said; on a 4S pack logged at

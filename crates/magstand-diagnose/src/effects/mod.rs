@@ -185,11 +185,19 @@ pub trait Effect: Sync + Send {
         None
     }
 
-    /// A richer form of this effect on this recording, with more freedom where the stand's
-    /// physics is not stated. It is tried only where this form's gain is significant, and
-    /// kept only where its own held-out gain beyond this form's is; it may have a richer form
+    /// The richer forms of this effect on this recording, with more freedom where the stand's
+    /// physics is not stated. Each is tried only where this form's gain is significant, and
+    /// kept only where its own held-out gain beyond this form's is; it may have richer forms
     /// of its own, tried the same way beyond it.
-    fn richer(&self, _ctx: &Context) -> Option<&'static dyn Effect> {
+    fn richer(&self, _ctx: &Context) -> Vec<&'static dyn Effect> {
+        Vec::new()
+    }
+
+    /// The form of this effect that its searched parameter `parameter` at the lower end of
+    /// its range (`lower`) or the upper stands for, without that parameter: where a fit runs
+    /// to that edge, the data ask for the limit, not for a value. None where there is no such
+    /// form (the fit is then refused at the edge).
+    fn edge_limit(&self, _parameter: &str, _lower: bool) -> Option<&'static dyn Effect> {
         None
     }
 
@@ -334,9 +342,7 @@ pub(crate) fn find(name: &str, variant: Option<&str>) -> Option<&'static dyn Eff
             .iter()
             .find(|e| e.name() == name)
             .map(|e| e.as_ref()),
-        Some(v) => {
-            battery_sag::free_discharge().find(|e| e.name() == name && e.variant() == Some(v))
-        }
+        Some(v) => battery_sag::richer_forms().find(|e| e.name() == name && e.variant() == Some(v)),
     }
 }
 
@@ -674,7 +680,13 @@ mod tests {
             let found = find(e.name(), None).map(|f| (f.name(), f.variant()));
             assert_eq!(found, Some((e.name(), None)), "effect {}", e.name());
         }
-        for form in ["free_discharge", "free_discharge_second_order"] {
+        for form in [
+            "free_discharge",
+            "free_discharge_second_order",
+            "free_discharge_no_sag",
+            "free_discharge_no_sag_second_order",
+            "drawn_charge",
+        ] {
             let rich = find("battery_sag", Some(form)).map(|f| (f.name(), f.variant()));
             assert_eq!(rich, Some(("battery_sag", Some(form))));
         }

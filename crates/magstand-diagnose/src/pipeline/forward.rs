@@ -143,16 +143,22 @@ fn try_candidate_from(
     }
 }
 
+/// Whether `a` and `b` are the same form of the same effect.
+fn same_form(a: &dyn Effect, b: &dyn Effect) -> bool {
+    a.name() == b.name() && a.variant() == b.variant()
+}
+
 /// Whether a candidate's held-out gain is positive and significant at `threshold`.
 fn significant(c: &CandidateResult, threshold: f64) -> bool {
     c.p_value.is_some_and(|p| p < threshold) && c.improvement.is_some_and(|g| g > 0.0)
 }
 
-/// Where a candidate's gain is significant at `threshold` and its effect has a richer form on
-/// this recording ([`Effect::richer`]), fits that form beside it: the richer form joins the
-/// round's candidates (`open` and `tried`) only where its own held-out gain beyond the form
-/// before it is significant at the same threshold (a form that joins has its own richer form
-/// tried the same way), so that freedom the data do not need does not cost the parameters'
+/// Where a candidate's gain is significant at `threshold` and its effect has richer forms on
+/// this recording ([`Effect::richer`]), fits each beside it (a form with no nonlinear
+/// parameters of its own wherever the candidate was fitted): a richer form joins the round's
+/// candidates (`open` and `tried`) only where its own held-out gain beyond the form before it
+/// is significant at the same threshold (a form that joins has its own richer forms tried the
+/// same way), so that freedom the data do not need does not cost the parameters'
 /// determination. Where it joins, its larger gain ranks it first, and the forms before it
 /// stay for the case that it does not replicate. Returns the results of the forms refused,
 /// with why, for the round's record. A form `refused` (at an edge in an earlier round) is not
@@ -167,6 +173,7 @@ fn try_richer_forms(
     before: &[Vec3],
     threshold: f64,
     refused: impl Fn(&dyn Effect) -> bool,
+    limits: &[&'static dyn Effect],
 ) -> Vec<CandidateResult> {
     let y = &ctx.rec.mag_ut;
     let mut others = Vec::new();
@@ -175,39 +182,80 @@ fn try_richer_forms(
     while next < tried.len() {
         let i = next;
         next += 1;
-        let Some(richer) = open[i]
+        // A form with nonlinear parameters of its own is tried only beside a significant form
+        // before it (its freedom could trade against theirs); one without, wherever the form
+        // before it was fitted, since it must still beat that form significantly to join.
+        let base_significant = significant(&tried[i].result, threshold);
+        let base_fitted = tried[i].fitted.is_some();
+        let mut queue: Vec<&dyn Effect> = open[i]
             .richer(ctx)
-            .filter(|r| significant(&tried[i].result, threshold) && !refused(*r))
-        else {
-            continue;
-        };
-        let form = richer.variant().unwrap_or("richer");
-        let from = tried[i]
-            .fitted
-            .as_ref()
-            .map(|(theta, _, _)| theta.as_slice());
-        let mut rich = try_candidate_from(ctx, terms, richer, w, before, from);
-        let (Some((_, _, plain_fit)), Some((_, _, rich_fit))) = (&tried[i].fitted, &rich.fitted)
-        else {
-            rich.result.note = Some(format!("refused: the form `{form}` cannot be fitted here"));
-            others.push(rich.result);
-            continue;
-        };
-        let (plain_after, rich_after) = (plain_fit.residuals(y), rich_fit.residuals(y));
-        let blocks = block_improvements(&plain_after, &rich_after, w, ctx.split);
-        let gain = mean_gain(&blocks);
-        let p = gain_p_value(&blocks, &plain_after, &rich_after, w, ctx.split).unwrap_or(1.0);
-        if gain > 0.0 && p < threshold {
-            tried[i].result.note = Some(format!(
-                "the form `{form}` lowers the held-out error beyond this one (p = {p:.2e}) and is tried first"
-            ));
-            open.push(richer);
-            tried.push(rich);
-        } else {
-            rich.result.note = Some(format!(
-                "refused: the form `{form}` does not lower the held-out error significantly beyond the form before it (p = {p:.2e})"
-            ));
-            others.push(rich.result);
+            .into_iter()
+            .filter(|r| !refused(*r))
+            .filter(|r| base_significant || (base_fitted && r.search(ctx).is_empty()))
+            .collect();
+        // The limits that forms refused at an edge after their refinement stand for, beside
+        // the catalog's form they were richer forms of.
+        if base_significant && open[i].variant().is_none() {
+            queue.extend(
+                limits
+                    .iter()
+                    .copied()
+                    .filter(|l| l.name() == open[i].name() && !refused(*l)),
+            );
+        }
+        let mut k = 0;
+        while k < queue.len() {
+            let richer = queue[k];
+            k += 1;
+            let form = richer.variant().unwrap_or("richer");
+            let from = tried[i]
+                .fitted
+                .as_ref()
+                .map(|(theta, _, _)| theta.as_slice())
+                .filter(|_| richer.parameters() == open[i].parameters());
+            let mut rich = try_candidate_from(ctx, terms, richer, w, before, from);
+            // A form fitted at the edge of a parameter's range has the limit that edge stands
+            // for tried beside it.
+            let limit = rich
+                .fitted
+                .as_ref()
+                .and_then(|(theta, _, _)| edge_limit(ctx, richer, theta))
+                .filter(|l| !refused(*l) && !queue.iter().any(|q| same_form(*q, *l)));
+            queue.extend(limit);
+            let (Some((_, _, plain_fit)), Some((_, _, rich_fit))) =
+                (&tried[i].fitted, &rich.fitted)
+            else {
+                rich.result.note =
+                    Some(format!("refused: the form `{form}` cannot be fitted here"));
+                others.push(rich.result);
+                continue;
+            };
+            let (plain_after, rich_after) = (plain_fit.residuals(y), rich_fit.residuals(y));
+            let blocks = block_improvements(&plain_after, &rich_after, w, ctx.split);
+            let gain = mean_gain(&blocks);
+            let p = gain_p_value(&blocks, &plain_after, &rich_after, w, ctx.split).unwrap_or(1.0);
+            if gain > 0.0 && p < threshold {
+                let note = format!(
+                    "the form `{form}` lowers the held-out error beyond this one (p = {p:.2e}) and is tried first"
+                );
+                tried[i].result.note = Some(match tried[i].result.note.take() {
+                    Some(earlier) => format!("{earlier}; {note}"),
+                    None => note,
+                });
+                open.push(richer);
+                tried.push(rich);
+            } else {
+                rich.result.note = Some(if gain > 0.0 {
+                    format!(
+                        "refused: the form `{form}` does not lower the held-out error significantly beyond the form before it (p = {p:.2e})"
+                    )
+                } else {
+                    format!(
+                        "refused: the form `{form}` does not lower the held-out error beyond the form before it (mean gain {gain:.3})"
+                    )
+                });
+                others.push(rich.result);
+            }
         }
     }
     others
@@ -517,20 +565,40 @@ fn likelihood_ratio(fall: f64, sd_factor: f64, parameters: usize, significance: 
 /// calibration (a stand constant is reported, not named, and its range is the physical one).
 /// Checked at acceptance and again on the refined parameters.
 fn at_edge(ctx: &Context, effect: &dyn Effect, theta: &[f64]) -> Option<String> {
+    edge_of(ctx, effect, theta).map(|(search, v, _)| {
+        format!(
+            "its {} = {v:.4} lies at the edge of its search range [{}, {}], so the data do not determine it",
+            search.name, search.lo, search.hi
+        )
+    })
+}
+
+/// The first of `effect`'s searched parameters `theta` at the edge of its range ([`at_edge`]):
+/// its search, its value and whether the edge is the lower one.
+fn edge_of(
+    ctx: &Context,
+    effect: &dyn Effect,
+    theta: &[f64],
+) -> Option<(crate::optimize::Search, f64, bool)> {
     if calibrates(effect, ctx, theta) {
         return None;
     }
     effect
         .search(ctx)
-        .iter()
+        .into_iter()
         .zip(theta)
         .find(|(search, v)| search.at_bound(**v))
         .map(|(search, v)| {
-            format!(
-                "its {} = {v:.4} lies at the edge of its search range [{}, {}], so the data do not determine it",
-                search.name, search.lo, search.hi
-            )
+            let lower = (v - search.lo).abs() <= (search.hi - v).abs();
+            (search, *v, lower)
         })
+}
+
+/// The form a fit of `effect` at the edge of a parameter's range stands for
+/// ([`Effect::edge_limit`]).
+fn edge_limit(ctx: &Context, effect: &dyn Effect, theta: &[f64]) -> Option<&'static dyn Effect> {
+    let (search, _, lower) = edge_of(ctx, effect, theta)?;
+    effect.edge_limit(search.name, lower)
 }
 
 /// [`at_edge`] of an accepted term's refined parameters.
@@ -608,6 +676,9 @@ pub(crate) fn forward_search<'e>(
     // Findings whose refined parameters ran to the edge of their range: not tried again.
     // By form: a richer form refused at an edge leaves the catalog's form to be tried.
     let mut indeterminate: Vec<(&str, Option<&str>)> = Vec::new();
+    // The forms that the findings refused at an edge after their refinement stand for
+    // ([`Effect::edge_limit`]), tried beside their catalog's form from then on.
+    let mut limits: Vec<&'static dyn Effect> = Vec::new();
     let mut withdrawn: Vec<String> = Vec::new();
     while terms.len() < cfg.max_terms {
         let model = latest.as_ref().unwrap_or(&base.model);
@@ -673,7 +744,7 @@ pub(crate) fn forward_search<'e>(
         } else {
             let refused = |e: &dyn Effect| indeterminate.contains(&(e.name(), e.variant()));
             try_richer_forms(
-                shared, &terms, &mut open, &mut tried, w, &before, threshold, refused,
+                shared, &terms, &mut open, &mut tried, w, &before, threshold, refused, &limits,
             )
         };
         let mut significant: Vec<usize> = (0..tried.len())
@@ -790,6 +861,8 @@ pub(crate) fn forward_search<'e>(
         loop {
             let newest = terms.len() - 1;
             if let Some(why) = refined_to_edge(ctx, &terms[newest]) {
+                let t = &terms[newest];
+                limits.extend(edge_limit(ctx, t.effect, &t.theta));
                 refused = Some(why);
                 break;
             }
