@@ -36,6 +36,10 @@ pub struct Baseline {
 pub struct EffectReport {
     /// Catalog name, or "unexplained".
     pub name: String,
+    /// The effect's richer form where one was kept (`free_discharge`, `drawn_charge`, ...:
+    /// see `Effect::richer`); absent for the catalog's own.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub form: Option<String>,
     /// Fitted parameters with units and uncertainties (from the final joint fit).
     pub params: Vec<Param>,
     /// One sentence of physics.
@@ -55,6 +59,9 @@ pub struct EffectReport {
 pub struct CandidateResult {
     /// Catalog name.
     pub name: String,
+    /// The effect's richer form this candidate is; absent for the catalog's own.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub form: Option<String>,
     /// Held-out RMSE per axis with the candidate, µT (None when it could not be fitted).
     pub holdout_rmse_ut: Option<[f64; 3]>,
     /// Mean drop of the weighted squared held-out residual per row (positive is better).
@@ -212,8 +219,12 @@ impl Diagnosis {
                 .iter()
                 .map(|p| format!("{} = {} {}", p.name, value_with_sd(p.value, p.sd), p.unit))
                 .collect();
+            let form = e
+                .form
+                .as_ref()
+                .map_or(String::new(), |f| format!(" (form `{f}`)"));
             s.push_str(&format!(
-                "  {}: {} -> {} (p = {:.2e}); throttle {:.2}..{:.2}, t {:.0}..{:.0} s, axes {}, {} ramps, {}, {}\n",
+                "  {}{form}: {} -> {} (p = {:.2e}); throttle {:.2}..{:.2}, t {:.0}..{:.0} s, axes {}, {} ramps, {}, {}\n",
                 e.name,
                 f3(e.holdout_rmse_before_ut),
                 f3(e.holdout_rmse_after_ut),

@@ -84,7 +84,10 @@ pub fn section(d: &Diagnosis) -> Result<Section, ReportError> {
         .iter()
         .map(|e| {
             vec![
-                e.name.clone(),
+                match &e.form {
+                    Some(form) => format!("{} (form {form})", e.name),
+                    None => e.name.clone(),
+                },
                 e.explanation.clone(),
                 e.params
                     .iter()

@@ -253,6 +253,7 @@ fn unexplained(
     let rmse = holdout_rmse(&resid, &ctx.split.holdout);
     let report = EffectReport {
         name: UNEXPLAINED.into(),
+        form: None,
         params: Vec::new(),
         explanation: "Structure remains in the held-out residuals that no catalog term \
                       explains; see where it is located."

@@ -60,6 +60,7 @@ impl Candidate {
         Candidate {
             result: CandidateResult {
                 name: effect.name().into(),
+                form: effect.variant().map(Into::into),
                 holdout_rmse_ut: None,
                 improvement: None,
                 p_value: None,
@@ -134,6 +135,7 @@ fn try_candidate_from(
     Candidate {
         result: CandidateResult {
             name: effect.name().into(),
+            form: effect.variant().map(Into::into),
             holdout_rmse_ut: Some(holdout_rmse(&after, &ctx.split.holdout)),
             improvement: Some(improvement),
             p_value: gain_p_value(&blocks, before, &after, weights, ctx.split),
@@ -179,6 +181,7 @@ fn try_richer_forms(
     let mut others = Vec::new();
     // A form that joins goes to the end of `tried`, where its own richer form is tried in turn.
     let mut next = 0;
+    let mut fitted_forms: Vec<&dyn Effect> = Vec::new();
     while next < tried.len() {
         let i = next;
         next += 1;
@@ -207,6 +210,12 @@ fn try_richer_forms(
         while k < queue.len() {
             let richer = queue[k];
             k += 1;
+            // A form is fitted once a round (a limit form's richer form can be reached two
+            // ways: as the limit of a richer form at its edge, and beyond the limit form).
+            if fitted_forms.iter().any(|f| same_form(*f, richer)) {
+                continue;
+            }
+            fitted_forms.push(richer);
             let form = richer.variant().unwrap_or("richer");
             let from = tried[i]
                 .fitted
@@ -829,6 +838,7 @@ pub(crate) fn forward_search<'e>(
         let after = fitted.residuals(y);
         reports.push(EffectReport {
             name: open[i].name().into(),
+            form: open[i].variant().map(Into::into),
             params: Vec::new(),
             explanation: open[i].explanation().into(),
             located,
@@ -988,6 +998,7 @@ mod tests {
             .iter()
             .map(|t| EffectReport {
                 name: t.effect.name().into(),
+                form: None,
                 params: Vec::new(),
                 explanation: String::new(),
                 located: Location {
