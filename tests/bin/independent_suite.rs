@@ -2,14 +2,17 @@
 //! prints its Markdown report:
 //! `cargo run --release -p magstand-tests --bin independent-suite -- [SEEDS [LABEL]]`
 //! (default 2 seeds, every case, both modes; LABEL keeps the cases whose label contains it,
-//! and LABEL `fit` runs only the fit comparison; FIRST_SEED in the environment starts
+//! and LABEL `fit` runs only the fit comparison, LABEL `battery-variants` the battery without
+//! `bat_v` on [`battery_variants`]; FIRST_SEED in the environment starts
 //! elsewhere; STAND=held-out runs the generator's second stand, `Stand::held_out`, and RATE_HZ samples at
 //! another rate). With
 //! WRITE_RECORDINGS=DIR it only writes each case's recordings there as CSV
 //! (`NN-label-seedS.csv`, the case's index in the suite), for timing the `magstand` command
 //! on them.
 use magstand_tests::SuiteArgs;
-use magstand_tests::independent::{Mode, cases, fit_accuracy, markdown, recording, run_case};
+use magstand_tests::independent::{
+    Mode, battery_variants, cases, fit_accuracy, markdown, recording, run_case, run_case_on,
+};
 
 fn main() {
     let SuiteArgs { seeds, only } = SuiteArgs::from_env(2);
@@ -40,6 +43,10 @@ fn main() {
         print_fit_accuracy();
         return;
     }
+    if only == "battery-variants" {
+        print_battery_variants(seeds);
+        return;
+    }
     let mut outcomes = Vec::new();
     for case in cases().into_iter().filter(|c| c.label.contains(&only)) {
         for mode in [Mode::Unstated, Mode::Stated] {
@@ -57,6 +64,37 @@ fn main() {
     if only.is_empty() {
         print_fit_accuracy();
     }
+}
+
+/// The battery without `bat_v` on each of [`battery_variants`], both modes, as a table.
+fn print_battery_variants(seeds: std::ops::Range<u64>) {
+    let Some(case) = cases()
+        .into_iter()
+        .find(|c| c.label == "battery sag, bat_v not logged")
+    else {
+        eprintln!("error: the suite has no case of a battery without bat_v");
+        std::process::exit(1);
+    };
+    println!("| variant | mode | seed | verdict | exact |\n|---|---|---|---|---|");
+    let mut exact = 0;
+    let mut runs = 0;
+    for (label, stand) in battery_variants() {
+        for mode in [Mode::Unstated, Mode::Stated] {
+            for seed in seeds.clone() {
+                let o = run_case_on(&stand, &case, mode, seed);
+                eprintln!("{label:44} {mode:?} seed {seed}: {:?}", o.verdict);
+                let right = o.correct();
+                exact += usize::from(right);
+                runs += 1;
+                println!(
+                    "| {label} | {mode:?} | {seed} | {} | {} |",
+                    o.verdict.join(", "),
+                    if right { "yes" } else { "no" }
+                );
+            }
+        }
+    }
+    println!("\n{exact} of {runs} diagnoses exactly right.");
 }
 
 fn print_fit_accuracy() {
