@@ -243,10 +243,23 @@ fn try_richer_forms(
             let blocks = block_improvements(&plain_after, &rich_after, w, ctx.split);
             let gain = mean_gain(&blocks);
             let p = gain_p_value(&blocks, &plain_after, &rich_after, w, ctx.split).unwrap_or(1.0);
-            if gain > 0.0 && p < threshold {
-                let note = format!(
-                    "the form `{form}` lowers the held-out error beyond this one (p = {p:.2e}) and is tried first"
-                );
+            // Where the form before it is itself at the edge of a parameter's range (refused),
+            // and the richer form does without that parameter, there is no determined
+            // parameter to protect: the richer form is judged on its own.
+            let undetermined = tried[i].fitted.as_ref().is_some_and(|(theta, _, _)| {
+                edge_of(ctx, open[i], theta)
+                    .is_some_and(|(search, _, _)| !richer.parameters().contains(&search.name))
+            });
+            if (gain > 0.0 && p < threshold) || undetermined {
+                let note = if undetermined {
+                    format!(
+                        "this form is at the edge of a range: the form `{form}` is judged on its own"
+                    )
+                } else {
+                    format!(
+                        "the form `{form}` lowers the held-out error beyond this one (p = {p:.2e}) and is tried first"
+                    )
+                };
                 tried[i].result.note = Some(match tried[i].result.note.take() {
                     Some(earlier) => format!("{earlier}; {note}"),
                     None => note,
