@@ -356,23 +356,16 @@ fn a_battery_without_bat_v_that_the_run_neither_empties_nor_bends_is_named_witho
     }
 }
 
-/// Regression: the same hexacopter on a larger pack (8 Ah, 0.05 ohm), stated, seed 5. The
-/// catalog's LiPo replay fitted worse than the baseline on held-out rows (mean gain -5.7), so
-/// no richer form was tried beside it, and the recording was called `unexplained`. A form with
-/// no nonlinear parameters of its own is tried wherever the catalog's form was fitted: it
-/// cannot trade freedom against that form's parameters, and must still beat it.
+/// Regression: the same hexacopter on a larger pack (8 Ah, 0.05 ohm, one of
+/// `independent::battery_variants`), stated, seed 5. The catalog's LiPo replay fitted worse
+/// than the baseline on held-out rows (mean gain -5.7), so no richer form was tried beside
+/// it, and the recording was called `unexplained`. A form with no nonlinear parameters of its
+/// own is tried wherever the catalog's form was fitted: it cannot trade freedom against that
+/// form's parameters, and must still beat it.
 #[test]
 fn a_battery_whose_catalog_form_fits_worse_than_none_is_still_named() {
-    use magstand_standgen::Supply;
     use magstand_tests::independent::Mode;
-    let stand = Stand {
-        battery: Supply::Battery {
-            cells: 6,
-            capacity_ah: 8.0,
-            resistance_ohm: 0.05,
-        },
-        ..Stand::held_out()
-    };
+    let stand = battery_variant("hexacopter, 8 Ah, 0.05 ohm");
     battery_is_named_alone_in_the_form(&stand, Mode::Stated, 5, "drawn_charge");
 }
 
@@ -384,17 +377,18 @@ fn a_battery_whose_catalog_form_fits_worse_than_none_is_still_named() {
 /// range, a richer form without that parameter is judged on its own.
 #[test]
 fn a_form_without_the_parameter_its_catalog_form_leaves_at_an_edge_is_judged_on_its_own() {
-    use magstand_standgen::Supply;
     use magstand_tests::independent::Mode;
-    let stand = Stand {
-        battery: Supply::Battery {
-            cells: 4,
-            capacity_ah: 5.0,
-            resistance_ohm: 0.02,
-        },
-        ..Stand::default()
-    };
+    let stand = battery_variant("quad, 5 Ah, 0.02 ohm");
     battery_is_named_alone_in_the_form(&stand, Mode::Stated, 5, "drawn_charge");
+}
+
+/// The stand of `independent::battery_variants` labelled `label`.
+fn battery_variant(label: &str) -> Stand {
+    magstand_tests::independent::battery_variants()
+        .into_iter()
+        .find(|(l, _)| *l == label)
+        .map(|(_, stand)| stand)
+        .unwrap_or_else(|| panic!("no battery variant {label:?}"))
 }
 
 /// Regression: the default stand's battery without `bat_v`, stated, seed 3. The form
