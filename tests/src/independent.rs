@@ -177,8 +177,9 @@ pub fn suite_stand() -> Stand {
 /// Variants of the generator's two stands with other packs, current laws and motor counts,
 /// for the case of a battery without `bat_v` (`independent-suite SEEDS battery-variants`).
 /// The first five were run on seeds 5 and 6 while `battery_sag`'s forms `drawn_charge` and
-/// `free_discharge_no_sag` were written (two of them looked at); the last four, on seeds 7
-/// and 8, only after: the held-out check of that change.
+/// `free_discharge_no_sag` were written (three of them looked at: the hexacopter on 8 Ah and
+/// on 1.5 Ah, the quad on 5 Ah); the last four, on seeds 7 and 8, only after: the held-out
+/// check of that change.
 pub fn battery_variants() -> Vec<(&'static str, Stand)> {
     let with = |base: Stand, cells: u32, capacity_ah: f64, resistance_ohm: f64| Stand {
         battery: Supply::Battery {

@@ -452,13 +452,11 @@ fn battery_is_named_alone_in_the_form(
         "{mode:?} seed {seed}: {}",
         o.diagnosis.summary()
     );
-    let path = std::env::temp_dir().join(format!(
-        "magstand-battery-form-{form}-{mode:?}-{}.json",
-        std::process::id()
-    ));
+    // A directory of its own: tests of the same form and mode run at once.
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("model.json");
     model.save(&path).unwrap();
     let loaded = magstand_diagnose::AugmentedModel::load(&path);
-    std::fs::remove_file(&path).ok();
     let (rec, truth) = recording_on(stand, &case, seed);
     let error_ut = rmse_ut(
         &loaded.unwrap().dist_column(&rec, "seen.csv").unwrap(),

@@ -362,12 +362,12 @@ impl Effect for BatterySag {
             .collect()
     }
     fn switch_on(&self, ctx: &Context, s: &mut Scenario, f: &EffectFit) -> Vec<Param> {
-        let pack = pack(ctx);
         if self.form == Form::DrawnCharge {
             // No constant of the pack is fitted (nor its cells, which only the supply's
             // voltage would tell): the supply stays as stated.
             return Vec::new();
         }
+        let pack = pack(ctx);
         let cells = Param::new("cells", pack.0 as f64, None, "cells in series");
         let fitted = if ctx.rec.bat_v.is_none() {
             self.battery(f.theta).zip(self.battery(f.theta_sd))

@@ -190,6 +190,12 @@ fn try_richer_forms(
         // before it was fitted, since it must still beat that form significantly to join.
         let base_significant = significant(&tried[i].result, threshold);
         let base_fitted = tried[i].fitted.is_some();
+        // The parameter the form before is undetermined in, at the edge of its range.
+        let base_edge = tried[i]
+            .fitted
+            .as_ref()
+            .and_then(|(theta, _, _)| edge_of(ctx, open[i], theta))
+            .map(|(search, _, _)| search.name);
         let mut queue: Vec<&dyn Effect> = open[i]
             .richer(ctx)
             .into_iter()
@@ -246,10 +252,7 @@ fn try_richer_forms(
             // Where the form before it is itself at the edge of a parameter's range (refused),
             // and the richer form does without that parameter, there is no determined
             // parameter to protect: the richer form is judged on its own.
-            let undetermined = tried[i].fitted.as_ref().is_some_and(|(theta, _, _)| {
-                edge_of(ctx, open[i], theta)
-                    .is_some_and(|(search, _, _)| !richer.parameters().contains(&search.name))
-            });
+            let undetermined = base_edge.is_some_and(|name| !richer.parameters().contains(&name));
             if (gain > 0.0 && p < threshold) || undetermined {
                 let note = if undetermined {
                     format!(
@@ -744,7 +747,10 @@ pub(crate) fn forward_search<'e>(
         let mut tried: Vec<Candidate> = open
             .par_iter()
             .map(|e| {
-                if let Some(c) = unchanged.iter().find(|c| c.result.name == e.name()) {
+                let same = |c: &&Candidate| {
+                    c.result.name == e.name() && c.result.form.as_deref() == e.variant()
+                };
+                if let Some(c) = unchanged.iter().find(same) {
                     let mut c = c.clone();
                     c.result.note = None;
                     c
