@@ -2,7 +2,7 @@
 //! regressor columns, fitted per axis on the identification rows only, with inverse-variance
 //! weights from the throttle-dependent noise model.
 use magstand_core::Vec3;
-use magstand_ident::least_squares::{NormalEquations, SharedRowEquations, SolveError};
+use magstand_ident::least_squares::{NormalEquations, SolveError, sum_column_rows};
 use magstand_sim::replay::Trace;
 
 use crate::stats::BatchMeans;
@@ -356,23 +356,25 @@ fn fit_columns(
     holdout: &[bool],
 ) -> Result<Fitted, SolveError> {
     let n = y.len();
-    let p = active.len();
     let target = |r: usize| match fixed {
         Some(f) => y[r] - f[r],
         None => y[r],
     };
     // The sums of a range of rows, per axis.
+    let columns: Vec<&[f64]> = active
+        .iter()
+        .map(|&j| design.columns[j].as_slice())
+        .collect();
     let sums = |rows: std::ops::Range<usize>| {
-        let mut ne = SharedRowEquations::<3>::new(p);
-        let mut x = vec![0.0; p];
-        for r in rows.filter(|&r| !holdout[r]) {
-            for (xj, &j) in x.iter_mut().zip(active) {
-                *xj = design.columns[j][r];
-            }
-            let t = target(r);
-            ne.add(&x, [t.x, t.y, t.z], weights.0[r]);
-        }
-        ne
+        sum_column_rows(
+            &columns,
+            rows.filter(|&r| !holdout[r]),
+            |r| {
+                let t = target(r);
+                [t.x, t.y, t.z]
+            },
+            |r| weights.0[r],
+        )
     };
     // Two fixed halves, summed on both cores when one is free (the searches' sequential steps
     // leave one idle), merged in the same order whatever the thread count.
