@@ -452,6 +452,30 @@ fn battery_is_named_alone_in_the_form(
         "{mode:?} seed {seed}: {}",
         o.diagnosis.summary()
     );
+    // The pack's cells are reported only where they are known (here: stated). Unstated,
+    // the data see the voltage's relative fall only: a resistance is per cell, and the
+    // nominal supply's cell count, a default, is not reported as the stand's.
+    let params: Vec<&str> = o.diagnosis.effects[0]
+        .params
+        .iter()
+        .map(|p| p.name.as_str())
+        .collect();
+    let cells = o.diagnosis.effects[0]
+        .params
+        .iter()
+        .find(|p| p.name == "cells")
+        .map(|p| p.value);
+    match (mode, &stand.battery) {
+        (magstand_tests::independent::Mode::Unstated, _) => assert!(
+            cells.is_none() && !params.contains(&"internal_resistance_ohm"),
+            "{mode:?} seed {seed}: {params:?}"
+        ),
+        (_, magstand_standgen::Supply::Battery { cells: truth, .. }) => assert!(
+            params.is_empty() || cells == Some(*truth as f64),
+            "{mode:?} seed {seed}: {params:?}, cells {cells:?} (the stand's {truth})"
+        ),
+        _ => unreachable!("the stand's battery is a battery"),
+    }
     // A directory of its own: tests of the same form and mode run at once.
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("model.json");

@@ -157,6 +157,16 @@ fn pack(ctx: &Context) -> (u32, f64) {
     }
 }
 
+/// Whether the pack's cells are known: from the logged voltage, or from a supply whose
+/// voltage or cells the scenario states. Otherwise [`pack`] takes the nominal supply's, a
+/// starting point rather than a claim about the stand: the data see the voltage's relative
+/// fall only, which the same resistance per cell gives on any number of cells.
+fn cells_known(ctx: &Context) -> bool {
+    ctx.rec.bat_v.is_some()
+        || ctx.nominal.states("supply.cells")
+        || ctx.nominal.states("supply.voltage_v")
+}
+
 /// The state of charge at which a LiPo cell rests at `cell_v` (0 below the empty cell's
 /// voltage, 1 above the full one's), by bisection of the simulator's curve.
 fn charge_resting_at(cell_v: f64) -> f64 {
@@ -369,6 +379,7 @@ impl Effect for BatterySag {
         }
         let pack = pack(ctx);
         let cells = Param::new("cells", pack.0 as f64, None, "cells in series");
+        let cells_known = cells_known(ctx);
         let fitted = if ctx.rec.bat_v.is_none() {
             self.battery(f.theta).zip(self.battery(f.theta_sd))
         } else {
@@ -382,7 +393,25 @@ impl Effect for BatterySag {
         if matches!(self.form, Form::FreeDischarge { sag: false, .. }) {
             // The resistance was not fitted: whatever sag follows the commands at once is in
             // the calibrated current law.
-            return vec![capacity, cells];
+            return if cells_known {
+                vec![capacity, cells]
+            } else {
+                vec![capacity]
+            };
+        }
+        if !cells_known {
+            // Only the voltage's relative fall is seen: the resistance over the cells'
+            // voltage, not the pack's resistance, whose cells nobody stated.
+            let per_cell = |r: f64| r / pack.0 as f64;
+            return vec![
+                Param::new(
+                    "internal_resistance_per_cell_ohm",
+                    per_cell(b.internal_resistance_ohm),
+                    sd.internal_resistance_ohm.map(per_cell),
+                    "ohm",
+                ),
+                capacity,
+            ];
         }
         vec![
             Param::new(
