@@ -444,10 +444,20 @@ impl<const K: usize> RowBlock<K> {
         sums: &mut SharedRowEquations<K>,
     ) {
         let n = at.len().next_multiple_of(LANES);
+        // Rows in one run (most blocks: a held-out split leaves long runs) are copied whole.
+        let run = match (at.first(), at.last()) {
+            (Some(&first), Some(&last)) if last - first + 1 == at.len() => Some(first..last + 1),
+            _ => None,
+        };
         for (j, column) in columns.iter().enumerate() {
             let x = &mut self.x[j * ROW_BLOCK..j * ROW_BLOCK + n];
-            for (o, &r) in x.iter_mut().zip(at) {
-                *o = column[r];
+            match &run {
+                Some(rows) => x[..at.len()].copy_from_slice(&column[rows.clone()]),
+                None => {
+                    for (o, &r) in x.iter_mut().zip(at) {
+                        *o = column[r];
+                    }
+                }
             }
             x[at.len()..].fill(0.0);
         }
