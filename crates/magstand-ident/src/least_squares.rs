@@ -709,9 +709,15 @@ mod tests {
 
     #[test]
     fn column_rows_give_the_sums_of_the_rows_one_by_one() {
+        // Rows scattered (no block is one run) and in runs (held-out blocks: most blocks are
+        // one run, copied whole, and some straddle a gap).
+        column_rows_match_rows_one_by_one(|r| r % 7 != 3);
+        column_rows_match_rows_one_by_one(|r| (r / 300) % 4 != 3);
+    }
+
+    fn column_rows_match_rows_one_by_one(kept: fn(&usize) -> bool) {
         let (p, n) = (9, 1000);
         let (columns, y, w) = column_rows_case(p, n);
-        let kept = |r: &usize| r % 7 != 3;
         let refs: Vec<&[f64]> = columns.iter().map(Vec::as_slice).collect();
         let blocked = sum_column_rows(&refs, (0..n).filter(kept), |r| y[r], |r| w[r]);
         let mut by_row = SharedRowEquations::<3>::new(p);
