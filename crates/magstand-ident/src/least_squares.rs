@@ -503,7 +503,8 @@ fn sum_block_avx2<const K: usize>(block: &mut RowBlock<K>, sums: &mut SharedRowE
     sum_block_with(block, sums, |wx, x| {
         use std::arch::x86_64::*;
         let n = x.len();
-        debug_assert!(n % LANES == 0 && wx.len() >= (K - 1) * ROW_BLOCK + n);
+        // What the loads below rely on: whole lanes, within `x` and each output's row.
+        assert!(n % LANES == 0 && n <= ROW_BLOCK && wx.len() >= K * ROW_BLOCK);
         let mut acc = [[_mm256_setzero_pd(); LANES / 4]; K];
         for c in (0..n).step_by(LANES) {
             for q in 0..LANES / 4 {
