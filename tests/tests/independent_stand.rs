@@ -382,6 +382,18 @@ fn a_form_without_the_parameter_its_catalog_form_leaves_at_an_edge_is_judged_on_
     battery_is_named_alone_in_the_form(&stand, Mode::Stated, 5, "drawn_charge");
 }
 
+/// Regression: the default stand's battery without `bat_v`, unstated, seed 4, was
+/// `battery_sag, unexplained`. The richer form `free_discharge` fitted worse than the
+/// catalog's form it extends (chi-square 15,900 against 10,700): its fit, singular in a
+/// straight-discharge column, left out the baseline's motors armed within the dead zone with
+/// it. Kept, the form is named alone, and its constants are near the generator's (0.011 ohm
+/// per cell, 1.3 Ah; 0.032 ohm and 2.84 Ah before, from the catalog's form).
+#[test]
+fn a_richer_battery_form_keeps_the_baselines_armed_motors() {
+    use magstand_tests::independent::Mode;
+    battery_is_named_alone_in_the_form(&Stand::default(), Mode::Unstated, 4, "free_discharge");
+}
+
 /// The stand of `independent::battery_variants` labelled `label`.
 fn battery_variant(label: &str) -> Stand {
     magstand_tests::independent::battery_variants()
