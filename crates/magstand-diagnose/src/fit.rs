@@ -321,7 +321,7 @@ pub(crate) fn fit(
     holdout: &[bool],
 ) -> Result<Fitted, SolveError> {
     // A column that may vanish and does on every identification row takes no part.
-    let active: Vec<usize> = (0..design.len())
+    let mut active: Vec<usize> = (0..design.len())
         .filter(|&j| {
             !may_vanish(&design.names[j])
                 || design.columns[j]
@@ -336,7 +336,6 @@ pub(crate) fn fit(
     // discharge's first: leaving out the baseline's armed motors for a discharge's sake made a
     // richer battery form fit worse than the form it extends.
     let mut result = fit_columns(design, &active, y, fixed, weights, holdout);
-    let mut active = active;
     for droppable in [is_straight_discharge as fn(&str) -> bool, may_vanish] {
         if !matches!(result, Err(SolveError::Singular { .. }))
             || !active.iter().any(|&j| droppable(&design.names[j]))

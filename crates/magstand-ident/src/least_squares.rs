@@ -298,13 +298,7 @@ impl<const K: usize> SharedRowEquations<K> {
     pub fn add(&mut self, x: &[f64], y: [f64; K], w: [f64; K]) {
         let p = self.params;
         let x = &x[..p];
-        let w = w.map(|w| if w > 0.0 { w } else { 0.0 });
-        for k in 0..K {
-            if w[k] > 0.0 {
-                self.weight_sum[k] += w[k];
-                self.rows[k] += 1;
-            }
-        }
+        let w = self.count_weights(w);
         for (s, &xi) in self.scaled.iter_mut().zip(x) {
             *s = w.map(|w| w * xi);
         }
@@ -321,6 +315,20 @@ impl<const K: usize> SharedRowEquations<K> {
                 self.xty[i][k] += wxi[k] * y[k];
             }
         }
+    }
+
+    /// Counts a row's weights `w` (an output's weight not positive, 0: the row is skipped
+    /// there) and returns them.
+    #[inline]
+    fn count_weights(&mut self, w: [f64; K]) -> [f64; K] {
+        let w = w.map(|w| if w > 0.0 { w } else { 0.0 });
+        for k in 0..K {
+            if w[k] > 0.0 {
+                self.weight_sum[k] += w[k];
+                self.rows[k] += 1;
+            }
+        }
+        w
     }
 
     /// Adds another accumulator's sums (the rows of another chunk).
@@ -462,14 +470,9 @@ impl<const K: usize> RowBlock<K> {
             x[at.len()..].fill(0.0);
         }
         for (c, &r) in at.iter().enumerate() {
-            let (yr, wr) = (y(r), w(r));
+            let (yr, wr) = (y(r), sums.count_weights(w(r)));
             for k in 0..K {
-                let wk = if wr[k] > 0.0 { wr[k] } else { 0.0 };
-                if wk > 0.0 {
-                    sums.weight_sum[k] += wk;
-                    sums.rows[k] += 1;
-                }
-                self.w[k * ROW_BLOCK + c] = wk;
+                self.w[k * ROW_BLOCK + c] = wr[k];
                 self.y[k * ROW_BLOCK + c] = yr[k];
             }
         }

@@ -140,6 +140,14 @@ const CAPACITY_SEARCH: Search = Search {
 /// 16.8 V is not the nominal 12 V supply's 3S. Otherwise the nominal battery's cells, or the
 /// number whose 3.9 V per cell is nearest the bench voltage, full.
 fn pack(ctx: &Context) -> (u32, f64) {
+    pack_and_whether_known(ctx).0
+}
+
+/// [`pack`], and whether its cells are known: from the logged voltage, or from the supply's
+/// cells or voltage where the scenario states them. Otherwise they are the nominal supply's,
+/// a starting point rather than a claim about the stand: the data see the voltage's relative
+/// fall only, which the same resistance per cell gives on any number of cells.
+fn pack_and_whether_known(ctx: &Context) -> ((u32, f64), bool) {
     let cells_at = |v: f64| ((v / 3.9).round() as u32).clamp(1, 14);
     let logged_max = ctx
         .rec
@@ -150,21 +158,16 @@ fn pack(ctx: &Context) -> (u32, f64) {
     match (logged_max, &ctx.nominal.supply) {
         (Some(v), _) => {
             let cells = cells_at(v);
-            (cells, charge_resting_at(v / cells as f64))
+            ((cells, charge_resting_at(v / cells as f64)), true)
         }
-        (None, SupplyParams::Battery { cells, .. }) => (*cells, 1.0),
-        (None, SupplyParams::Bench { voltage_v, .. }) => (cells_at(*voltage_v), 1.0),
+        (None, SupplyParams::Battery { cells, .. }) => {
+            ((*cells, 1.0), ctx.nominal.states("supply.cells"))
+        }
+        (None, SupplyParams::Bench { voltage_v, .. }) => (
+            (cells_at(*voltage_v), 1.0),
+            ctx.nominal.states("supply.voltage_v"),
+        ),
     }
-}
-
-/// Whether the pack's cells are known: from the logged voltage, or from a supply whose
-/// voltage or cells the scenario states. Otherwise [`pack`] takes the nominal supply's, a
-/// starting point rather than a claim about the stand: the data see the voltage's relative
-/// fall only, which the same resistance per cell gives on any number of cells.
-fn cells_known(ctx: &Context) -> bool {
-    ctx.rec.bat_v.is_some()
-        || ctx.nominal.states("supply.cells")
-        || ctx.nominal.states("supply.voltage_v")
 }
 
 /// The state of charge at which a LiPo cell rests at `cell_v` (0 below the empty cell's
@@ -377,9 +380,8 @@ impl Effect for BatterySag {
             // voltage would tell): the supply stays as stated.
             return Vec::new();
         }
-        let pack = pack(ctx);
+        let (pack, cells_known) = pack_and_whether_known(ctx);
         let cells = Param::new("cells", pack.0 as f64, None, "cells in series");
-        let cells_known = cells_known(ctx);
         let fitted = if ctx.rec.bat_v.is_none() {
             self.battery(f.theta).zip(self.battery(f.theta_sd))
         } else {
