@@ -877,7 +877,9 @@ pub(crate) fn forward_search<'e>(
         });
         // The new term was fitted with the others' parameters held; they and the moment of
         // the interval at which commands act are refitted with it.
-        refine(ctx, &mut terms, w);
+        refine(ctx, &mut terms, w, |ctx, t| {
+            refined_to_edge(ctx, t).is_some()
+        });
         // The bound rule holds for refined parameters too, after every refinement: an older
         // finding the new term leaves at the edge of its range is withdrawn (the new term
         // explains what it took) and the rest refined again without it; where the new term
@@ -911,7 +913,9 @@ pub(crate) fn forward_search<'e>(
                 why
             ));
             indeterminate.push((gone.effect.name(), gone.effect.variant()));
-            refine(ctx, &mut terms, w);
+            refine(ctx, &mut terms, w, |ctx, t| {
+                refined_to_edge(ctx, t).is_some()
+            });
         }
         if let Some(why) = refused {
             let s = before_acceptance;

@@ -22,7 +22,17 @@ const REFINE_PASSES: usize = 2;
 /// lead, bit for bit) is not run again: it would find the same optimum, and each of its grid
 /// points is a replay of the recording. The newest term was just searched as a candidate
 /// beside the others as they are.
-pub(crate) fn refine(ctx: &mut Context, terms: &mut [Term], weights: &Weights) {
+///
+/// Where a search of the newest term ends with `at_edge` true of it (a parameter at the edge
+/// of its range, which refuses the term), the refinement stops there: the passes after it
+/// would refit the older terms and the lead around a term that is undetermined beside them,
+/// each search a replay per point, and the term is refused with the state it ends in.
+pub(crate) fn refine(
+    ctx: &mut Context,
+    terms: &mut [Term],
+    weights: &Weights,
+    at_edge: impl Fn(&Context, &Term) -> bool,
+) {
     let mut searched_at: Vec<Option<Vec<u64>>> = vec![None; terms.len()];
     if let Some(last) = searched_at.last_mut() {
         *last = Some(objective_key(ctx, terms, terms.len() - 1));
@@ -81,6 +91,9 @@ pub(crate) fn refine(ctx: &mut Context, terms: &mut [Term], weights: &Weights) {
                 terms[k].theta_sd = opt.sd;
             }
             searched_at[k] = (pass > 0 || !older).then_some(key);
+            if !older && at_edge(ctx, &terms[k]) {
+                return;
+            }
         }
         let key = objective_key(ctx, terms, TIMING);
         if timed_at.as_ref() != Some(&key) {
@@ -280,5 +293,98 @@ fn lead_search() -> Search {
         hi: 1.0,
         log: false,
         points: 5,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::effects::{TestStand, find};
+    use magstand_core::Vec3;
+    use std::cell::Cell;
+
+    /// A short stair with a lagging, drifting field: every search of the refinement has
+    /// something to move.
+    fn stand() -> TestStand {
+        let t_s: Vec<f64> = (0..2000).map(|k| k as f64 * 0.04).collect();
+        let thr: Vec<f64> = t_s
+            .iter()
+            .map(|t| ((t / 3.0).floor() % 9.0) / 8.0)
+            .collect();
+        let mag_ut: Vec<Vec3> = t_s
+            .iter()
+            .zip(&thr)
+            .map(|(t, u)| {
+                let slow = 0.3 * (t / 40.0).sin();
+                Vec3::new(20.0 + 3.0 * u + slow, -4.0 - u * u, 40.0 + 2.0 * u - slow)
+            })
+            .collect();
+        TestStand::new(magstand_core::Recording {
+            mag_ut,
+            thr: vec![thr],
+            overall_only: true,
+            t_s,
+            ..Default::default()
+        })
+    }
+
+    /// Each named term at the middle of its search range.
+    fn terms<'a>(ctx: &Context, names: &[&str]) -> Vec<Term<'a>> {
+        names
+            .iter()
+            .map(|name| {
+                let e = find(name, None).unwrap_or_else(|| panic!("no {name}"));
+                let theta: Vec<f64> = e
+                    .search(ctx)
+                    .iter()
+                    .map(|s| {
+                        if s.log {
+                            (s.lo * s.hi).sqrt()
+                        } else {
+                            0.5 * (s.lo + s.hi)
+                        }
+                    })
+                    .collect();
+                Term {
+                    effect: e,
+                    theta_sd: vec![None; theta.len()],
+                    theta,
+                }
+            })
+            .collect()
+    }
+
+    /// The refinement asks after each search of the newest term whether it is at an edge, and
+    /// stops at the first yes: the searches after it would be replays spent on a term that is
+    /// refused. Asked nothing of the older terms; where the answer is no, the lead and the
+    /// later passes still run.
+    #[test]
+    fn a_newest_term_at_an_edge_ends_the_refinement() {
+        let stand = stand();
+        let names = ["thermal_drift", "current_lag"];
+        let w = Weights(vec![[1.0; 3]; 2000]);
+        let run = |answer: bool| {
+            let mut ctx = stand.context();
+            let mut terms = terms(&ctx, &names);
+            let asked = Cell::new(Vec::new());
+            refine(&mut ctx, &mut terms, &w, |_, t| {
+                let mut a = asked.take();
+                a.push(t.effect.name());
+                asked.set(a);
+                answer
+            });
+            (asked.take(), point(&ctx, &terms))
+        };
+        let (asked_yes, stopped_at) = run(true);
+        assert_eq!(asked_yes, ["current_lag"], "asked {asked_yes:?}");
+        let (asked_no, refined_to) = run(false);
+        assert!(
+            !asked_no.is_empty() && asked_no.iter().all(|n| *n == "current_lag"),
+            "asked {asked_no:?}"
+        );
+        assert_ne!(
+            stopped_at, refined_to,
+            "the passes after the stop changed nothing: the test would not tell them apart"
+        );
     }
 }
