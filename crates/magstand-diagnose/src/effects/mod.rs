@@ -509,6 +509,32 @@ impl TestStand {
             replays: Default::default(),
         }
     }
+
+    /// A stair of one overall command (3 s per level, nine levels over and over) sampled
+    /// every 0.04 s for `rows` rows, whose field the nominal law does not hold exactly: a
+    /// slow drift beside the command's, so every term's fit moves the residual.
+    pub(crate) fn drifting_stair(rows: usize) -> Self {
+        let t_s: Vec<f64> = (0..rows).map(|k| k as f64 * 0.04).collect();
+        let thr: Vec<f64> = t_s
+            .iter()
+            .map(|t| ((t / 3.0).floor() % 9.0) / 8.0)
+            .collect();
+        let mag_ut: Vec<magstand_core::Vec3> = t_s
+            .iter()
+            .zip(&thr)
+            .map(|(t, u)| {
+                let slow = 0.3 * (t / 40.0).sin();
+                magstand_core::Vec3::new(20.0 + 3.0 * u + slow, -4.0 - u * u, 40.0 + 2.0 * u - slow)
+            })
+            .collect();
+        Self::new(Recording {
+            mag_ut,
+            thr: vec![thr],
+            overall_only: true,
+            t_s,
+            ..Default::default()
+        })
+    }
 }
 
 #[cfg(test)]

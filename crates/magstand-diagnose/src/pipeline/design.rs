@@ -19,6 +19,31 @@ pub(crate) struct Term<'e> {
     pub(crate) theta_sd: Vec<Option<f64>>,
 }
 
+#[cfg(test)]
+impl Term<'static> {
+    /// The catalog's effect `name` at the middle of each of its search ranges (the geometric
+    /// middle of a logarithmic one).
+    pub(crate) fn mid_range(ctx: &Context, name: &str) -> Self {
+        let effect = crate::effects::find(name, None).unwrap_or_else(|| panic!("no {name}"));
+        let theta: Vec<f64> = effect
+            .search(ctx)
+            .iter()
+            .map(|s| {
+                if s.log {
+                    (s.lo * s.hi).sqrt()
+                } else {
+                    0.5 * (s.lo + s.hi)
+                }
+            })
+            .collect();
+        Term {
+            effect,
+            theta_sd: vec![None; theta.len()],
+            theta,
+        }
+    }
+}
+
 /// The design of a model and which columns belong to which term.
 pub(crate) struct Built {
     pub(crate) design: Design,

@@ -956,7 +956,7 @@ pub(crate) fn forward_search<'e>(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::effects::{TestStand, find};
+    use crate::effects::TestStand;
     use crate::locate::Location;
 
     /// After a withdrawal, every finding from the first place it emptied on is restated on the
@@ -966,55 +966,12 @@ mod tests {
     /// is the next one's before; the reports before that place are left as they were.
     #[test]
     fn every_finding_after_a_withdrawal_is_restated_in_order() {
-        let t_s: Vec<f64> = (0..3000).map(|k| k as f64 * 0.04).collect();
-        let thr: Vec<f64> = t_s
-            .iter()
-            .map(|t| ((t / 3.0).floor() % 9.0) / 8.0)
-            .collect();
-        // A field the nominal law does not hold exactly: a slow drift and a lagging part, so
-        // each term's fit moves the residual.
-        let mag_ut: Vec<Vec3> = t_s
-            .iter()
-            .zip(&thr)
-            .map(|(t, u)| {
-                let slow = 0.3 * (t / 40.0).sin();
-                Vec3::new(20.0 + 3.0 * u + slow, -4.0 - u * u, 40.0 + 2.0 * u - slow)
-            })
-            .collect();
-        let stand = TestStand::new(magstand_core::Recording {
-            mag_ut,
-            thr: vec![thr],
-            overall_only: true,
-            t_s,
-            ..Default::default()
-        });
+        let stand = TestStand::drifting_stair(3000);
         let ctx = stand.context();
-        let effect = |name: &str| find(name, None).unwrap_or_else(|| panic!("no {name}"));
-        // Each term at the middle of its search range.
-        let term = |name: &str| {
-            let e = effect(name);
-            let theta: Vec<f64> = e
-                .search(&ctx)
-                .iter()
-                .map(|s| {
-                    if s.log {
-                        (s.lo * s.hi).sqrt()
-                    } else {
-                        0.5 * (s.lo + s.hi)
-                    }
-                })
-                .collect();
-            Term {
-                effect: e,
-                theta_sd: vec![None; theta.len()],
-                theta,
-            }
-        };
-        let terms = vec![
-            term("thermal_drift"),
-            term("current_lag"),
-            term("hysteresis"),
-        ];
+        let terms: Vec<Term> = ["thermal_drift", "current_lag", "hysteresis"]
+            .iter()
+            .map(|name| Term::mid_range(&ctx, name))
+            .collect();
         let w = Weights(vec![[1.0; 3]; ctx.rec.len()]);
         let sentinel = [-1.0; 3];
         let mut reports: Vec<EffectReport> = terms

@@ -299,60 +299,8 @@ fn lead_search() -> Search {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::effects::{TestStand, find};
-    use magstand_core::Vec3;
+    use crate::effects::TestStand;
     use std::cell::Cell;
-
-    /// A short stair with a lagging, drifting field: every search of the refinement has
-    /// something to move.
-    fn stand() -> TestStand {
-        let t_s: Vec<f64> = (0..2000).map(|k| k as f64 * 0.04).collect();
-        let thr: Vec<f64> = t_s
-            .iter()
-            .map(|t| ((t / 3.0).floor() % 9.0) / 8.0)
-            .collect();
-        let mag_ut: Vec<Vec3> = t_s
-            .iter()
-            .zip(&thr)
-            .map(|(t, u)| {
-                let slow = 0.3 * (t / 40.0).sin();
-                Vec3::new(20.0 + 3.0 * u + slow, -4.0 - u * u, 40.0 + 2.0 * u - slow)
-            })
-            .collect();
-        TestStand::new(magstand_core::Recording {
-            mag_ut,
-            thr: vec![thr],
-            overall_only: true,
-            t_s,
-            ..Default::default()
-        })
-    }
-
-    /// Each named term at the middle of its search range.
-    fn terms<'a>(ctx: &Context, names: &[&str]) -> Vec<Term<'a>> {
-        names
-            .iter()
-            .map(|name| {
-                let e = find(name, None).unwrap_or_else(|| panic!("no {name}"));
-                let theta: Vec<f64> = e
-                    .search(ctx)
-                    .iter()
-                    .map(|s| {
-                        if s.log {
-                            (s.lo * s.hi).sqrt()
-                        } else {
-                            0.5 * (s.lo + s.hi)
-                        }
-                    })
-                    .collect();
-                Term {
-                    effect: e,
-                    theta_sd: vec![None; theta.len()],
-                    theta,
-                }
-            })
-            .collect()
-    }
 
     /// The refinement asks after each search of the newest term whether it is at an edge, and
     /// stops at the first yes: the searches after it would be replays spent on a term that is
@@ -360,12 +308,12 @@ mod tests {
     /// later passes still run.
     #[test]
     fn a_newest_term_at_an_edge_ends_the_refinement() {
-        let stand = stand();
+        let stand = TestStand::drifting_stair(2000);
         let names = ["thermal_drift", "current_lag"];
         let w = Weights(vec![[1.0; 3]; 2000]);
         let run = |answer: bool| {
             let mut ctx = stand.context();
-            let mut terms = terms(&ctx, &names);
+            let mut terms: Vec<Term> = names.iter().map(|n| Term::mid_range(&ctx, n)).collect();
             let asked = Cell::new(Vec::new());
             refine(&mut ctx, &mut terms, &w, |_, t| {
                 let mut a = asked.take();
