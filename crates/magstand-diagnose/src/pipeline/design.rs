@@ -174,6 +174,8 @@ pub(crate) fn build_with_lead(ctx: &Context, terms: &[(&dyn Effect, &[f64])], le
         ctx.armed_current,
     );
     let mut fixed = trace.extra_ut.clone();
+    // The lag runs over the magnetometer's reads: a late one reads between the commands' rows.
+    let read_lead = lead_between_reads(ctx.rec.typical_interval_s(), s.logging.mag_delay_s, lead);
     for tau_s in field_lags.iter().flatten() {
         lag_current_field(
             &trace.t_s,
@@ -181,7 +183,7 @@ pub(crate) fn build_with_lead(ctx: &Context, terms: &[(&dyn Effect, &[f64])], le
             &mut fixed,
             spinup_behind_s,
             *tau_s,
-            lead,
+            read_lead,
         );
     }
     // Every term's columns, from the baseline's current law as built; a term that lags the
@@ -196,7 +198,7 @@ pub(crate) fn build_with_lead(ctx: &Context, terms: &[(&dyn Effect, &[f64])], le
             if let Some(tau_s) = *field_lag {
                 columns.push((
                     "lagged_current_squared_a2".into(),
-                    square_behind_lag(trace, avionics_a, spinup_behind_s, tau_s, lead),
+                    square_behind_lag(trace, avionics_a, spinup_behind_s, tau_s, read_lead),
                 ));
             }
             columns
@@ -228,6 +230,22 @@ pub(crate) fn build_with_lead(ctx: &Context, terms: &[(&dyn Effect, &[f64])], le
         full_load_a: max_a,
         term_columns,
     }
+}
+
+/// Where within each interval between two of the magnetometer's reads a command change takes
+/// effect, as a fraction of the interval before the later read: `lead` of the commands' own
+/// interval (`interval_s`, the rows' typical one) where the magnetometer reads at its rows'
+/// times; where it reads `delay_s` earlier, `lead` less the delay's fraction of an interval,
+/// wrapped into 0..1 (a change the commands' rows place a quarter interval before a row lies
+/// a quarter interval before a read of a magnetometer late by whole intervals, and three
+/// quarters before one late by half an interval more). The replay reads a late magnetometer's
+/// rows at their delayed times with each command stepped at its moment; a lag of the field run
+/// over those reads must put each step where the replay did.
+fn lead_between_reads(interval_s: f64, delay_s: f64, lead: f64) -> f64 {
+    if !(delay_s > 0.0 && interval_s > 0.0) {
+        return lead;
+    }
+    (lead - (delay_s / interval_s).fract()).rem_euclid(1.0)
 }
 
 /// Lags the field of the motor currents by `tau_s` behind a spin-up of `spinup_s`
@@ -421,6 +439,55 @@ pub(crate) fn timing_spread(ctx: &Context, terms: &[Term], coef: &[[f64; 3]]) ->
 mod tests {
     use super::*;
     use magstand_core::Recording;
+
+    /// A command stepped from 0 to 1 at 1.0075 s (a quarter of the 0.01 s interval before the
+    /// row at 1.01 s), read by a magnetometer late by 0.3, 0.305 and 0.3125 s (whole intervals,
+    /// and half and three quarters more): the field lagged over the reads, with the change
+    /// placed by [`lead_between_reads`], is the first-order step response `1 - exp(-(t - t0)
+    /// / tau)` at every read's time, to rounding. With the commands' own lead instead, a read
+    /// late by half an interval more takes the step half an interval off.
+    #[test]
+    fn a_lag_over_a_late_magnetometers_reads_steps_where_the_command_did() {
+        let (interval_s, tau_s, lead) = (0.01, 0.5, 0.25);
+        let switch_s = 1.01 - lead * interval_s;
+        let t_s: Vec<f64> = (0..400).map(|k| k as f64 * interval_s).collect();
+        for delay_s in [0.3, 0.305, 0.3125] {
+            let reads: Vec<f64> = t_s.iter().map(|t| t - delay_s).collect();
+            let stepped = |lead: f64| {
+                let mut column: Vec<f64> = reads
+                    .iter()
+                    .map(|&t| if t >= switch_s { 1.0 } else { 0.0 })
+                    .collect();
+                crate::effects::lag_in_place(&t_s, &mut [&mut column], tau_s, lead);
+                column
+            };
+            let placed = stepped(lead_between_reads(interval_s, delay_s, lead));
+            for (r, (&t, &got)) in reads.iter().zip(&placed).enumerate() {
+                let want = if t > switch_s {
+                    1.0 - (-(t - switch_s) / tau_s).exp()
+                } else {
+                    0.0
+                };
+                assert!(
+                    (got - want).abs() < 1e-9,
+                    "delay {delay_s} s, read {r} at {t} s: lagged {got}, the step response {want}"
+                );
+            }
+            if delay_s == 0.305 {
+                let unplaced = stepped(lead);
+                let worst = unplaced
+                    .iter()
+                    .zip(&placed)
+                    .map(|(a, b)| (a - b).abs())
+                    .fold(0.0, f64::max);
+                assert!(
+                    worst > 1e-3,
+                    "the commands' lead placed the step as well: {worst}"
+                );
+            }
+        }
+        assert_eq!(lead_between_reads(interval_s, 0.0, lead), lead);
+    }
 
     /// Regression: with `bat_v` logged, `battery_sag` rebuilt the baseline's current law from
     /// the replay for its columns (the voltage's change times each law column), beside the one
