@@ -152,6 +152,17 @@ pub fn cases() -> Vec<Case> {
             false,
             false,
         ),
+        // Added in the twenty-fourth session, after the diagnosis learned this combination
+        // (last, so that the earlier cases keep their index in written recordings).
+        case(
+            "current lag + time offset",
+            vec![
+                Effect::CurrentLag { tau_s: 0.5 },
+                Effect::TimeOffset { delay_s: 0.3 },
+            ],
+            false,
+            false,
+        ),
     ]
 }
 

@@ -1018,18 +1018,8 @@ fn a_finding_refined_to_the_edge_of_its_range_is_withdrawn() {
 /// was looked at while the change was made; this one is its regression.
 #[test]
 fn a_slow_lag_beside_a_late_magnetometer_is_named_with_both_times() {
-    use magstand_standgen::Effect;
     use magstand_tests::independent::{Mode, run_case};
-    let case = Case {
-        label: "current lag 0.5 s + time offset 0.3 s",
-        effects: vec![
-            Effect::CurrentLag { tau_s: 0.5 },
-            Effect::TimeOffset { delay_s: 0.3 },
-        ],
-        log_bat_v: false,
-        log_temp: false,
-    };
-    let o = run_case(&case, Mode::Unstated, 1);
+    let o = run_case(&suite_case("current lag + time offset"), Mode::Unstated, 1);
     let d = &o.diagnosis;
     let mut verdict = o.verdict.clone();
     verdict.sort();
