@@ -17,7 +17,7 @@ use super::gain::{
     block_improvements, block_improvements_on, gain_p_value, holdout_rmse, mean_gain, standardized,
     whiteness,
 };
-use super::refine::refine;
+use super::refine::{refine, slow_lag_beside_delay};
 
 /// The calibrated baseline the search starts from.
 pub(crate) struct BaselineFit {
@@ -72,18 +72,41 @@ impl Candidate {
 }
 
 /// Fits `effect` beside the accepted `terms` and tests its held-out gain over `before`.
+///
+/// A late magnetometer beside a lag slower than any spin-up whose gain is significant
+/// (below `significance`) with the lag held is fitted again with the lag refitted at each
+/// delay ([`slow_lag_beside_delay`]), and the better fit kept: the lag, named first, was
+/// calibrated long enough to hold the delay too, which leaves the delay a fraction of its
+/// gain, and another candidate could take the round (a hysteresis took it on a 0.8 s lag
+/// beside a 0.2 s delay). Only where it is significant: the refits cost a search of the lag
+/// per delay, in every round after the lag, on every recording with a slow lag.
 fn try_candidate(
     ctx: &Context,
     terms: &[Term],
     effect: &dyn Effect,
     weights: &Weights,
     before: &[Vec3],
+    significance: f64,
 ) -> Candidate {
-    try_candidate_from(ctx, terms, effect, weights, before, None)
+    let held = try_candidate_from(ctx, terms, effect, weights, before, None, None);
+    let Some(lag) = slow_lag_beside_delay(ctx, terms, effect) else {
+        return held;
+    };
+    if !held.result.p_value.is_some_and(|p| p < significance) {
+        return held;
+    }
+    let refitted = try_candidate_from(ctx, terms, effect, weights, before, None, Some(lag));
+    let chi2 = |c: &Candidate| c.fitted.as_ref().map(|(_, _, f)| f.chi2_fit);
+    match (chi2(&held), chi2(&refitted)) {
+        (Some(h), Some(r)) if r < h => refitted,
+        _ => held,
+    }
 }
 
 /// [`try_candidate`], its search started `from` these parameters where given (a richer form
-/// of an effect from the catalog form's optimum) rather than over its whole range.
+/// of an effect from the catalog form's optimum) rather than over its whole range; where
+/// `lag` is the index of a term, that term's parameters refitted near where they are at each
+/// of the candidate's (the candidate's own stay its search's).
 fn try_candidate_from(
     ctx: &Context,
     terms: &[Term],
@@ -91,6 +114,7 @@ fn try_candidate_from(
     weights: &Weights,
     before: &[Vec3],
     from: Option<&[f64]>,
+    lag: Option<usize>,
 ) -> Candidate {
     let base = as_refs(terms);
     fn with_theta<'a>(
@@ -102,13 +126,29 @@ fn try_candidate_from(
         all.push((effect, theta));
         all
     }
-    let chi2 = |theta: &[f64]| {
-        chi2_of(
+    let partner = lag;
+    let lag_at = |theta: &[f64]| {
+        let l = partner?;
+        let lags = terms[l].effect.search(ctx);
+        minimize_near(&lags, Some(&terms[l].theta), |lag: &[f64]| {
+            let mut refs = base.clone();
+            refs[l].1 = lag;
+            chi2_of(
+                ctx,
+                &with_theta(&refs, effect, theta),
+                ctx.command_lead,
+                weights,
+            )
+        })
+    };
+    let chi2 = |theta: &[f64]| match partner {
+        Some(_) => lag_at(theta).map(|o| o.value),
+        None => chi2_of(
             ctx,
             &with_theta(&base, effect, theta),
             ctx.command_lead,
             weights,
-        )
+        ),
     };
     let searches = effect.search(ctx);
     let found = match from {
@@ -121,9 +161,14 @@ fn try_candidate_from(
             "cannot be fitted on this recording (its regressors are degenerate here)",
         );
     };
+    let lag = lag_at(&opt.theta).map(|o| o.theta);
+    let mut refs = base.clone();
+    if let (Some(l), Some(lag)) = (partner, lag.as_deref()) {
+        refs[l].1 = lag;
+    }
     let Some(fitted) = fitted_with(
         ctx,
-        &with_theta(&base, effect, &opt.theta),
+        &with_theta(&refs, effect, &opt.theta),
         ctx.command_lead,
         weights,
     ) else {
@@ -228,7 +273,7 @@ fn try_richer_forms(
                 .as_ref()
                 .map(|(theta, _, _)| theta.as_slice())
                 .filter(|_| richer.parameters() == open[i].parameters());
-            let mut rich = try_candidate_from(ctx, terms, richer, w, before, from);
+            let mut rich = try_candidate_from(ctx, terms, richer, w, before, from, None);
             // A form fitted at the edge of a parameter's range has the limit that edge stands
             // for tried beside it.
             let limit = rich
@@ -755,7 +800,7 @@ pub(crate) fn forward_search<'e>(
                     c.result.note = None;
                     c
                 } else if e.applies(shared) {
-                    try_candidate(shared, &terms, *e, w, &before)
+                    try_candidate(shared, &terms, *e, w, &before, cfg.significance)
                 } else {
                     Candidate::not_fitted(*e, "does not apply to this recording")
                 }

@@ -120,6 +120,26 @@ pub(crate) fn refine(
 /// time, crawls along the valley (the default stand with a 0.5 s lag and a 0.3 s late
 /// magnetometer ended at 0.52 s and 0.24 s, the misfit left named `hysteresis` and
 /// `unexplained`; the profile finds 0.50 s and 0.28 s).
+/// Where `candidate` is a late magnetometer (`time_offset`) and `terms` hold a lag slower
+/// than any spin-up, that lag's index: a candidate's fit may refit it at each delay, as
+/// [`delay_behind_slow_lag`] does in the refinement.
+pub(crate) fn slow_lag_beside_delay(
+    ctx: &Context,
+    terms: &[Term],
+    candidate: &dyn crate::effects::Effect,
+) -> Option<usize> {
+    use crate::effects::{CurrentLag, Effect, TimeOffset};
+    if candidate.name() != TimeOffset.name() || ctx.follow_recorded_current {
+        return None;
+    }
+    terms.iter().position(|t| {
+        t.effect.name() == CurrentLag.name()
+            && t.theta
+                .first()
+                .is_some_and(|&tau_s| tau_s > crate::effects::MAX_SPINUP_S)
+    })
+}
+
 fn delay_behind_slow_lag(ctx: &mut Context, terms: &mut [Term], weights: &Weights) {
     use crate::effects::{CurrentLag, Effect, TimeOffset};
     let at = |name: &str| terms.iter().position(|t| t.effect.name() == name);
