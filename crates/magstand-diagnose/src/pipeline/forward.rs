@@ -74,10 +74,10 @@ impl Candidate {
 /// Fits `effect` beside the accepted `terms` and tests its held-out gain over `before`.
 ///
 /// A late magnetometer beside a lag slower than any spin-up whose gain is significant
-/// (below `significance`) with the lag held, at a delay within its range, is fitted again with
-/// the lag refitted at each delay ([`slow_lag_beside_delay`]), and the better fit kept: the lag, named first, was
-/// calibrated long enough to hold the delay too, which leaves the delay a fraction of its
-/// gain, and another candidate could take the round (a hysteresis took it on a 0.8 s lag
+/// (below `significance`) with the lag held, at a delay within its range, is fitted again
+/// with the lag refitted at each delay ([`slow_lag_beside_delay`]), and the better fit kept:
+/// the lag, named first, was calibrated long enough to hold the delay too, which leaves the
+/// delay a fraction of its gain, and another candidate could take the round (a hysteresis took it on a 0.8 s lag
 /// beside a 0.2 s delay). Only there: the refits cost a search of the lag per delay, in every
 /// round after the lag (0.5 to 0.9 s on the suite's lag-only recordings, whose delay
 /// candidate is significant at the lowest delay on three seeds of four, before the bound).
@@ -113,7 +113,7 @@ fn try_candidate(
 
 /// [`try_candidate`], its search started `from` these parameters where given (a richer form
 /// of an effect from the catalog form's optimum) rather than over its whole range; where
-/// `lag` is the index of a term, that term's parameters refitted near where they are at each
+/// `refit_lag` is the index of a term, that term's parameters refitted near where they are at each
 /// of the candidate's (the candidate's own stay its search's).
 fn try_candidate_from(
     ctx: &Context,
@@ -122,7 +122,7 @@ fn try_candidate_from(
     weights: &Weights,
     before: &[Vec3],
     from: Option<&[f64]>,
-    lag: Option<usize>,
+    refit_lag: Option<usize>,
 ) -> Candidate {
     let base = as_refs(terms);
     fn with_theta<'a>(
@@ -134,9 +134,8 @@ fn try_candidate_from(
         all.push((effect, theta));
         all
     }
-    let partner = lag;
     let lag_at = |theta: &[f64]| {
-        let l = partner?;
+        let l = refit_lag?;
         let lags = terms[l].effect.search(ctx);
         minimize_near(&lags, Some(&terms[l].theta), |lag: &[f64]| {
             let mut refs = base.clone();
@@ -149,7 +148,7 @@ fn try_candidate_from(
             )
         })
     };
-    let chi2 = |theta: &[f64]| match partner {
+    let chi2 = |theta: &[f64]| match refit_lag {
         Some(_) => lag_at(theta).map(|o| o.value),
         None => chi2_of(
             ctx,
@@ -171,7 +170,7 @@ fn try_candidate_from(
     };
     let lag = lag_at(&opt.theta).map(|o| o.theta);
     let mut refs = base.clone();
-    if let (Some(l), Some(lag)) = (partner, lag.as_deref()) {
+    if let (Some(l), Some(lag)) = (refit_lag, lag.as_deref()) {
         refs[l].1 = lag;
     }
     let Some(fitted) = fitted_with(
@@ -679,6 +678,12 @@ fn edge_limit(ctx: &Context, effect: &dyn Effect, theta: &[f64]) -> Option<&'sta
     effect.edge_limit(search.name, lower)
 }
 
+/// Whether an accepted term's refined parameters lie at an edge ([`refined_to_edge`]): what
+/// a refinement asks of its newest term after each search of it.
+fn refused_at_edge(ctx: &Context, term: &Term) -> bool {
+    refined_to_edge(ctx, term).is_some()
+}
+
 /// [`at_edge`] of an accepted term's refined parameters.
 fn refined_to_edge(ctx: &Context, term: &Term) -> Option<String> {
     at_edge(ctx, term.effect, &term.theta)
@@ -930,9 +935,7 @@ pub(crate) fn forward_search<'e>(
         });
         // The new term was fitted with the others' parameters held; they and the moment of
         // the interval at which commands act are refitted with it.
-        refine(ctx, &mut terms, w, |ctx, t| {
-            refined_to_edge(ctx, t).is_some()
-        });
+        refine(ctx, &mut terms, w, refused_at_edge);
         // The bound rule holds for refined parameters too, after every refinement: an older
         // finding the new term leaves at the edge of its range is withdrawn (the new term
         // explains what it took) and the rest refined again without it; where the new term
@@ -966,9 +969,7 @@ pub(crate) fn forward_search<'e>(
                 why
             ));
             indeterminate.push((gone.effect.name(), gone.effect.variant()));
-            refine(ctx, &mut terms, w, |ctx, t| {
-                refined_to_edge(ctx, t).is_some()
-            });
+            refine(ctx, &mut terms, w, refused_at_edge);
         }
         if let Some(why) = refused {
             let s = before_acceptance;

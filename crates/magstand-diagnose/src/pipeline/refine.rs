@@ -107,11 +107,34 @@ pub(crate) fn refine(
     valley_steps(ctx, terms, weights);
 }
 
+/// The index in `terms` of a lag slower than any spin-up: the term whose currents' field lags
+/// ([`Effect::field_lag_s`](crate::effects::Effect::field_lag_s), `current_lag` beyond
+/// [`MAX_SPINUP_S`](crate::effects::MAX_SPINUP_S) on a stand).
+fn slow_lag(ctx: &Context, terms: &[Term]) -> Option<usize> {
+    terms
+        .iter()
+        .position(|t| t.effect.field_lag_s(ctx, &t.theta).is_some())
+}
+
+/// Where `candidate` is a late magnetometer (`time_offset`) and `terms` hold a lag slower
+/// than any spin-up ([`slow_lag`]), that lag's index: a candidate's fit may refit it at each
+/// delay, as [`delay_behind_slow_lag`] does in the refinement.
+pub(crate) fn slow_lag_beside_delay(
+    ctx: &Context,
+    terms: &[Term],
+    candidate: &dyn crate::effects::Effect,
+) -> Option<usize> {
+    use crate::effects::{Effect, TimeOffset};
+    (candidate.name() == TimeOffset.name())
+        .then(|| slow_lag(ctx, terms))
+        .flatten()
+}
+
 /// Where a late magnetometer (`time_offset`) and a lag slower than any spin-up
-/// (`current_lag` beyond [`MAX_SPINUP_S`](crate::effects::MAX_SPINUP_S)) are both in the
-/// model and one of them is the newest, the delay is searched over its whole range with the
-/// lag refitted near where it is at each delay (a profile of the chi-square), and kept where
-/// it lowers the chi-square; the command lead is then searched again near where it was.
+/// ([`slow_lag`]) are both in the model and one of them is the newest, the delay is searched
+/// over its whole range with the lag refitted near where it is at each delay (a profile of
+/// the chi-square), and kept where it lowers the chi-square; the command lead is then
+/// searched again near where it was.
 ///
 /// Both make the field follow a command change late, so the chi-square's valley runs along
 /// more lag with less delay. The lag is named first where the two are in the data (it takes
@@ -120,38 +143,16 @@ pub(crate) fn refine(
 /// time, crawls along the valley (the default stand with a 0.5 s lag and a 0.3 s late
 /// magnetometer ended at 0.52 s and 0.24 s, the misfit left named `hysteresis` and
 /// `unexplained`; the profile finds 0.50 s and 0.28 s).
-/// Where `candidate` is a late magnetometer (`time_offset`) and `terms` hold a lag slower
-/// than any spin-up, that lag's index: a candidate's fit may refit it at each delay, as
-/// [`delay_behind_slow_lag`] does in the refinement.
-pub(crate) fn slow_lag_beside_delay(
-    ctx: &Context,
-    terms: &[Term],
-    candidate: &dyn crate::effects::Effect,
-) -> Option<usize> {
-    use crate::effects::{CurrentLag, Effect, TimeOffset};
-    if candidate.name() != TimeOffset.name() || ctx.follow_recorded_current {
-        return None;
-    }
-    terms.iter().position(|t| {
-        t.effect.name() == CurrentLag.name()
-            && t.theta
-                .first()
-                .is_some_and(|&tau_s| tau_s > crate::effects::MAX_SPINUP_S)
-    })
-}
-
 fn delay_behind_slow_lag(ctx: &mut Context, terms: &mut [Term], weights: &Weights) {
-    use crate::effects::{CurrentLag, Effect, TimeOffset};
-    let at = |name: &str| terms.iter().position(|t| t.effect.name() == name);
-    let (Some(d), Some(l)) = (at(TimeOffset.name()), at(CurrentLag.name())) else {
+    use crate::effects::{Effect, TimeOffset};
+    let d = terms
+        .iter()
+        .position(|t| t.effect.name() == TimeOffset.name());
+    let (Some(d), Some(l)) = (d, slow_lag(ctx, terms)) else {
         return;
     };
     let newest = terms.len() - 1;
-    let slow = terms[l]
-        .theta
-        .first()
-        .is_some_and(|&tau_s| tau_s > crate::effects::MAX_SPINUP_S);
-    if !slow || (d != newest && l != newest) {
+    if d != newest && l != newest {
         return;
     }
     let (delays, lags) = (terms[d].effect.search(ctx), terms[l].effect.search(ctx));
