@@ -429,6 +429,7 @@ impl AugmentedModel {
             motor_groups,
             motor_current_law: self.motor_current_law.clone(),
             replays: Default::default(),
+            series_lags: Default::default(),
         };
         // Each effect's parameters as its own search defines them: as many as it searches,
         // finite, positive where it searches on a log scale, and within ten times its range.

@@ -126,7 +126,18 @@ pub(crate) fn minimize_near(
     from: Option<&[f64]>,
     f: impl Fn(&[f64]) -> Option<f64> + Sync,
 ) -> Option<Optimum> {
-    minimize_near_or_whole(searches, from, false, f)
+    minimize_near_or_whole(searches, from, false, Precision::Fine, f)
+}
+
+/// [`minimize_near`] to `precision`: [`Precision::Value`] for a search whose optimum's value
+/// alone is used (the inner search of a profile, evaluated at every point of another search).
+pub(crate) fn minimize_near_to(
+    searches: &[Search],
+    from: Option<&[f64]>,
+    precision: Precision,
+    f: impl Fn(&[f64]) -> Option<f64> + Sync,
+) -> Option<Optimum> {
+    minimize_near_or_whole(searches, from, false, precision, f)
 }
 
 /// [`minimize_near`] for a search whose objective may have moved its optimum to another
@@ -138,18 +149,19 @@ pub(crate) fn minimize_near_or_beyond(
     from: &[f64],
     f: impl Fn(&[f64]) -> Option<f64> + Sync,
 ) -> Option<Optimum> {
-    minimize_near_or_whole(searches, Some(from), true, f)
+    minimize_near_or_whole(searches, Some(from), true, Precision::Fine, f)
 }
 
-/// [`minimize_near`], and, with `beyond`, [`minimize_near_or_beyond`].
+/// [`minimize_near`], and, with `beyond`, [`minimize_near_or_beyond`], to `precision`.
 fn minimize_near_or_whole(
     searches: &[Search],
     from: Option<&[f64]>,
     beyond: bool,
+    precision: Precision,
     f: impl Fn(&[f64]) -> Option<f64> + Sync,
 ) -> Option<Optimum> {
     let Some(theta) = from.filter(|t| t.len() == searches.len()) else {
-        return minimize(searches, f);
+        return minimize_to(searches, precision, f);
     };
     let eval = in_search_coordinates(searches, &f);
     let start: Vec<f64> = searches
@@ -162,9 +174,9 @@ fn minimize_near_or_whole(
         .collect();
     let value = eval(&start);
     if !value.is_finite() {
-        return minimize(searches, &f);
+        return minimize_to(searches, precision, &f);
     }
-    let near = polish(searches, start.clone(), value, &eval, Precision::Fine)?;
+    let near = polish(searches, start.clone(), value, &eval, precision)?;
     let left_basin = beyond
         && searches
             .iter()
@@ -177,7 +189,7 @@ fn minimize_near_or_whole(
     if !left_basin {
         return Some(near);
     }
-    match minimize(searches, &f) {
+    match minimize_to(searches, precision, &f) {
         Some(whole) if whole.value < near.value => Some(whole),
         _ => Some(near),
     }
@@ -197,6 +209,10 @@ pub(crate) enum Precision {
     /// fine search from the point found follows (a refinement's first pass, which only has to
     /// find the basin).
     Coarse,
+    /// As [`Precision::Fine`], without uncertainties: where only the optimum's value and
+    /// parameters are used (the inner search of a profile, run at every point of the outer
+    /// search, where the curvature's two evaluations would be a sixth of its cost).
+    Value,
 }
 
 /// The coarse refinement's accuracy as a fraction of a grid step (see [`Precision::Coarse`]).
@@ -426,7 +442,7 @@ fn polish(
     // steps) follow the coupling; a candidate's search only has to rank and test it, and a
     // second pass over a battery's two parameters cost a round a tenth of a second.
     let tolerance_steps = match precision {
-        Precision::Fine => REFINE_TOLERANCE_STEPS,
+        Precision::Fine | Precision::Value => REFINE_TOLERANCE_STEPS,
         Precision::Coarse => COARSE_TOLERANCE_STEPS,
     };
     // Coordinate `k` refined from `base` (value `at_base`): the point and value where lower.
@@ -495,7 +511,7 @@ fn polish(
         .zip(&best_u)
         .map(|(s, &u)| s.value_at(u))
         .collect();
-    if precision == Precision::Coarse {
+    if precision != Precision::Fine {
         return Some(Optimum {
             theta,
             value: best,

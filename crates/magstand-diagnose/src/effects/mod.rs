@@ -97,6 +97,8 @@ pub struct Context<'a> {
     pub motor_current_law: Option<crate::augmented_model::MotorCurrentLaw>,
     /// Replays already made of this recording, reused by the searches.
     pub(crate) replays: crate::pipeline::design::ReplayCache,
+    /// Factors of the field's lags already made for this recording, reused by the searches.
+    pub(crate) series_lags: crate::pipeline::design::SeriesLagCache,
 }
 
 /// The motors of `thr` (one command column per motor) in groups that no row tells apart: the
@@ -370,45 +372,129 @@ pub(crate) fn lag_in_place(t_s: &[f64], columns: &mut [&mut [f64]], tau_s: f64, 
     lag_columns(t_s, columns, tau_s, true, lead.clamp(0.0, 1.0));
 }
 
+/// Rows per task where [`SeriesLag::new`] computes its factors in parallel.
+const LAG_ROWS_PER_TASK: usize = 4096;
+
+/// Columns [`SeriesLag::apply`] lags together in one task: each column's recursion is a chain
+/// of dependent steps, and a few columns stepped side by side keep a core busy between them.
+const LAG_COLUMNS_PER_TASK: usize = 4;
+
 /// [`lag_in_place`] through two first-order lags in series, `first_s` then `then_s` (a
-/// motor's spin-up, then a lag of the currents' field), each column settled at its first value.
+/// motor's spin-up, then a lag of the currents' field), each column settled at its first
+/// value, as a map of each interval of a recording made once for all the columns a design
+/// lags the same way (the current law's, the fixed field's, the square of the current): its
+/// four exponentials per row cost as much as lagging the columns.
+///
 /// Each interval is solved exactly for its two stretches (the earlier sample held for
 /// `1 - lead` of it, then the later one): the first lag's output is not a step at either end,
 /// so lagging a column twice, row by row, would take the part of a change that the first lag
 /// had passed by a row for a step at that row's moment and the rest for another step an
 /// interval later. (With no first lag this is [`lag_in_place`] in other rounding; that one
 /// stays for a single lag, so the outputs of every other lag keep their bits.)
-pub(crate) fn lag_in_place_twice(
-    t_s: &[f64],
-    columns: &mut [&mut [f64]],
-    first_s: f64,
-    then_s: f64,
-    lead: f64,
-) {
-    let lead = lead.clamp(0.0, 1.0);
-    let n = columns.iter().map(|c| c.len()).fold(t_s.len(), usize::min);
-    // Per column: the sample before, and the two lags' states.
-    let mut states: Vec<(f64, f64, f64)> = columns
-        .iter()
-        .map(|c| {
-            let v = c.first().copied().unwrap_or(0.0);
-            (v, v, v)
-        })
-        .collect();
-    for r in 1..n {
-        let dt = t_s[r] - t_s[r - 1];
-        let stretches = [
-            series_factors((1.0 - lead) * dt, first_s, then_s),
-            series_factors(lead * dt, first_s, then_s),
-        ];
-        for (col, (previous, x1, x2)) in columns.iter_mut().zip(&mut states) {
-            for (input, (e1, e2, coupling)) in [*previous, col[r]].into_iter().zip(stretches) {
-                let (a, b) = (*x1 - input, *x2 - input);
-                *x1 = input + a * e1;
-                *x2 = input + b * e2 + a * coupling;
+pub(crate) struct SeriesLag {
+    /// Per interval, its two stretches composed into one linear map ([`IntervalMap`]).
+    intervals: Vec<IntervalMap>,
+}
+
+/// One interval of two first-order lags in series, its two stretches (the earlier sample
+/// `p` held, then the later one `q`) composed: the states `x1`, `x2` at its end are
+/// `a11 x1 + b1p p + b1q q` and `a22 x2 + a21 x1 + b2p p + b2q q`. Each column's recursion
+/// is then one multiply-add deep per row on each state, where stepping the two stretches
+/// one after the other chains eight operations.
+#[derive(Clone, Copy)]
+struct IntervalMap {
+    a11: f64,
+    b1p: f64,
+    b1q: f64,
+    a21: f64,
+    a22: f64,
+    b2p: f64,
+    b2q: f64,
+}
+
+impl IntervalMap {
+    /// The stretch with factors `held` ([`series_factors`]) on the earlier sample, then the
+    /// one with `then` on the later.
+    fn composed(held: (f64, f64, f64), then: (f64, f64, f64)) -> Self {
+        let ((e1, e2, c), (g1, g2, gc)) = (held, then);
+        IntervalMap {
+            a11: g1 * e1,
+            b1p: g1 * (1.0 - e1),
+            b1q: 1.0 - g1,
+            a21: g2 * c + gc * e1,
+            a22: g2 * e2,
+            b2p: g2 * (1.0 - e2 - c) + gc * (1.0 - e1),
+            b2q: 1.0 - g2 - gc,
+        }
+    }
+}
+
+impl SeriesLag {
+    /// The map of `first_s` then `then_s` over each interval of `t_s`, each column's change
+    /// acting from `lead` (0..1) of its interval.
+    pub(crate) fn new(t_s: &[f64], first_s: f64, then_s: f64, lead: f64) -> Self {
+        use rayon::prelude::*;
+        let lead = lead.clamp(0.0, 1.0);
+        let intervals = t_s
+            .par_windows(2)
+            .with_min_len(LAG_ROWS_PER_TASK)
+            .map(|w| {
+                let dt = w[1] - w[0];
+                IntervalMap::composed(
+                    series_factors((1.0 - lead) * dt, first_s, then_s),
+                    series_factors(lead * dt, first_s, then_s),
+                )
+            })
+            .collect();
+        SeriesLag { intervals }
+    }
+
+    /// About how many bytes the maps take.
+    pub(crate) fn bytes(&self) -> usize {
+        std::mem::size_of_val(self.intervals.as_slice())
+    }
+
+    /// Lags every column in place from its first value, a few columns per task in parallel
+    /// (each column's bits are those of one column lagged alone).
+    pub(crate) fn apply(&self, columns: &mut [&mut [f64]]) {
+        use rayon::prelude::*;
+        let n = columns
+            .iter()
+            .map(|c| c.len())
+            .fold(self.intervals.len() + 1, usize::min);
+        columns
+            .par_chunks_mut(LAG_COLUMNS_PER_TASK)
+            .for_each(|group| self.apply_to(group, n));
+    }
+
+    /// [`SeriesLag::apply`] on the first `n` rows of one group of columns.
+    fn apply_to(&self, group: &mut [&mut [f64]], n: usize) {
+        match group {
+            [a, b, c, d] => self.apply_to_width([a, b, c, d], n),
+            [a, b, c] => self.apply_to_width([a, b, c], n),
+            [a, b] => self.apply_to_width([a, b], n),
+            [a] => self.apply_to_width([a], n),
+            _ => group.chunks_mut(1).for_each(|one| self.apply_to(one, n)),
+        }
+    }
+
+    /// [`SeriesLag::apply_to`] on `W` columns stepped side by side, their states in registers.
+    fn apply_to_width<const W: usize>(&self, group: [&mut &mut [f64]; W], n: usize) {
+        let columns: [&mut [f64]; W] = group.map(|c| &mut c[..n]);
+        // Per column: the sample before, and the two lags' states.
+        let mut previous: [f64; W] =
+            std::array::from_fn(|j| columns[j].first().copied().unwrap_or(0.0));
+        let (mut x1, mut x2) = (previous, previous);
+        for (r, m) in (1..n).zip(&self.intervals) {
+            for j in 0..W {
+                let (p, q) = (previous[j], columns[j][r]);
+                let inputs_1 = m.b1p * p + m.b1q * q;
+                let inputs_2 = m.a21 * x1[j] + m.b2p * p + m.b2q * q;
+                x1[j] = m.a11 * x1[j] + inputs_1;
+                x2[j] = m.a22 * x2[j] + inputs_2;
+                previous[j] = q;
+                columns[j][r] = x2[j];
             }
-            *previous = col[r];
-            col[r] = *x2;
         }
     }
 }
@@ -507,6 +593,7 @@ impl TestStand {
             motor_groups: motor_groups(&self.rec.thr),
             motor_current_law: None,
             replays: Default::default(),
+            series_lags: Default::default(),
         }
     }
 
@@ -623,7 +710,7 @@ mod tests {
         for (spinup_s, tau_s) in [(0.001, 0.5), (0.08, 0.5), (0.3, 0.3)] {
             for lead in [0.0, 0.01, 0.5, 1.0] {
                 let mut a = x.clone();
-                lag_in_place_twice(&t_s, &mut [&mut a], spinup_s, tau_s, lead);
+                SeriesLag::new(&t_s, spinup_s, tau_s, lead).apply(&mut [&mut a]);
                 let switch_s = t_s[20] - lead * (t_s[20] - t_s[19]);
                 for r in 0..60 {
                     let since = t_s[r] - switch_s;
@@ -647,6 +734,48 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// Columns are lagged a few at a time, side by side, and the groups in parallel: every
+    /// column of a set of seven (groups of four and three) comes out with the bits it has
+    /// lagged alone, and a column shorter than the others bounds the rows lagged in all.
+    #[test]
+    fn columns_lagged_together_equal_each_lagged_alone() {
+        let t_s: Vec<f64> = (0..500)
+            .map(|r| 0.02 * r as f64 + 0.0004 * (r % 5) as f64)
+            .collect();
+        let columns: Vec<Vec<f64>> = (0..7)
+            .map(|c| (0..500).map(|r| ((r / (20 + c) + c) % 4) as f64).collect())
+            .collect();
+        let lag = SeriesLag::new(&t_s, 0.03, 0.4, 0.3);
+        let mut together = columns.clone();
+        lag.apply(
+            &mut together
+                .iter_mut()
+                .map(Vec::as_mut_slice)
+                .collect::<Vec<_>>(),
+        );
+        for (c, column) in columns.iter().enumerate() {
+            let mut alone = column.clone();
+            lag.apply(&mut [&mut alone]);
+            assert_eq!(
+                alone, together[c],
+                "column {c} differs lagged with the others"
+            );
+            assert_ne!(alone, *column, "column {c} was not lagged");
+        }
+        let (mut long, mut short) = (columns[0].clone(), columns[1][..300].to_vec());
+        lag.apply(&mut [&mut long, &mut short]);
+        assert_eq!(
+            long[300..],
+            columns[0][300..],
+            "rows beyond the shortest column lagged"
+        );
+        assert_eq!(
+            short,
+            together[1][..300],
+            "the shorter column's rows differ"
+        );
     }
 
     #[test]

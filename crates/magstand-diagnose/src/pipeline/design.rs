@@ -5,6 +5,8 @@ use std::sync::{Arc, Mutex};
 
 use magstand_core::Vec3;
 use magstand_sim::Scenario;
+
+use crate::effects::SeriesLag;
 use magstand_sim::replay::{Logged, Trace, replay_logged};
 
 use crate::DiagnoseError;
@@ -176,15 +178,22 @@ pub(crate) fn build_with_lead(ctx: &Context, terms: &[(&dyn Effect, &[f64])], le
     let mut fixed = trace.extra_ut.clone();
     // The lag runs over the magnetometer's reads: a late one reads between the commands' rows.
     let read_lead = lead_between_reads(ctx.rec.typical_interval_s(), s.logging.mag_delay_s, lead);
-    for tau_s in field_lags.iter().flatten() {
-        lag_current_field(
-            &trace.t_s,
-            &mut design,
-            &mut fixed,
-            spinup_behind_s,
-            *tau_s,
-            read_lead,
-        );
+    let kernels: Vec<Option<FieldLag>> = field_lags
+        .iter()
+        .map(|tau_s| {
+            tau_s.map(|tau_s| {
+                FieldLag::new(
+                    &ctx.series_lags,
+                    &trace.t_s,
+                    spinup_behind_s,
+                    tau_s,
+                    read_lead,
+                )
+            })
+        })
+        .collect();
+    for lag in kernels.iter().flatten() {
+        lag_current_field(&mut design, &mut fixed, lag);
     }
     // Every term's columns, from the baseline's current law as built; a term that lags the
     // currents' field also takes the second order of a field nonlinear in the current.
@@ -192,13 +201,13 @@ pub(crate) fn build_with_lead(ctx: &Context, terms: &[(&dyn Effect, &[f64])], le
     let avionics_a = s.supply.avionics_current_a();
     let added: Vec<Vec<(String, Vec<f64>)>> = terms
         .iter()
-        .zip(&field_lags)
+        .zip(&kernels)
         .map(|((e, theta), field_lag)| {
             let mut columns = e.regressors(ctx, trace, &law, theta);
-            if let Some(tau_s) = *field_lag {
+            if let Some(lag) = field_lag {
                 columns.push((
                     "lagged_current_squared_a2".into(),
-                    square_behind_lag(trace, avionics_a, spinup_behind_s, tau_s, read_lead),
+                    square_behind_lag(trace, avionics_a, lag),
                 ));
             }
             columns
@@ -248,40 +257,103 @@ fn lead_between_reads(interval_s: f64, delay_s: f64, lead: f64) -> f64 {
     (lead - (delay_s / interval_s).fract()).rem_euclid(1.0)
 }
 
-/// Lags the field of the motor currents by `tau_s` behind a spin-up of `spinup_s`
-/// ([`lag_behind_spinup`]): the baseline's current-law columns (all but the motors-off
-/// `reference` and a measured `current_a`) and the per-motor field the scenario fixes, each
-/// change acting from `lead` of its interval as the replay's commands do.
-fn lag_current_field(
-    t_s: &[f64],
-    design: &mut Design,
-    fixed: &mut [Vec3],
-    spinup_s: f64,
-    tau_s: f64,
-    lead: f64,
-) {
+/// Lags the field of the motor currents by `lag` ([`FieldLag`]): the baseline's current-law
+/// columns (all but the motors-off `reference` and a measured `current_a`) and the per-motor
+/// field the scenario fixes.
+fn lag_current_field(design: &mut Design, fixed: &mut [Vec3], lag: &FieldLag) {
     let mut xyz: [Vec<f64>; 3] = std::array::from_fn(|a| fixed.iter().map(|v| v[a]).collect());
     let mut columns: Vec<&mut [f64]> = design.current_law_columns_mut().collect();
     columns.extend(xyz.iter_mut().map(|c| c.as_mut_slice()));
-    lag_behind_spinup(t_s, &mut columns, spinup_s, tau_s, lead);
+    lag.apply(&mut columns);
     for (r, v) in fixed.iter_mut().enumerate() {
         *v = Vec3::new(xyz[0][r], xyz[1][r], xyz[2][r]);
     }
 }
 
-/// Lags `columns` (a replay's, each command stepped in full at its moment) by `tau_s` behind
-/// a spin-up of `spinup_s` (none where 0): the two first-order lags in series.
-fn lag_behind_spinup(
-    t_s: &[f64],
-    columns: &mut [&mut [f64]],
-    spinup_s: f64,
-    tau_s: f64,
-    lead: f64,
-) {
-    if spinup_s > 0.0 {
-        crate::effects::lag_in_place_twice(t_s, columns, spinup_s, tau_s, lead);
-    } else {
-        crate::effects::lag_in_place(t_s, columns, tau_s, lead);
+/// A lag of the currents' field, for the columns of a replay (each command stepped in full at
+/// its moment): `tau_s` behind a spin-up of `spinup_s` (none where 0), the two first-order
+/// lags in series, each change acting from `lead` of its interval.
+enum FieldLag<'t> {
+    /// Behind a spin-up: its factors, made once for every column a design lags.
+    BehindSpinup(Arc<SeriesLag>),
+    /// No spin-up: the field's lag alone.
+    Alone {
+        t_s: &'t [f64],
+        tau_s: f64,
+        lead: f64,
+    },
+}
+
+impl<'t> FieldLag<'t> {
+    /// The lag over `t_s`, its factors from `cache` where they were made before.
+    fn new(cache: &SeriesLagCache, t_s: &'t [f64], spinup_s: f64, tau_s: f64, lead: f64) -> Self {
+        if spinup_s > 0.0 {
+            FieldLag::BehindSpinup(cache.get_or_make(t_s, spinup_s, tau_s, lead))
+        } else {
+            FieldLag::Alone { t_s, tau_s, lead }
+        }
+    }
+
+    /// Lags `columns` in place, each from its first value.
+    fn apply(&self, columns: &mut [&mut [f64]]) {
+        match self {
+            FieldLag::BehindSpinup(series) => series.apply(columns),
+            FieldLag::Alone { t_s, tau_s, lead } => {
+                crate::effects::lag_in_place(t_s, columns, *tau_s, *lead)
+            }
+        }
+    }
+}
+
+/// The factors of the field's lags already made ([`SeriesLag`]), by the times, time
+/// constants and lead they were made for: every candidate beside a lagging field, and every
+/// step of a search of anything but the lag, lags its columns the same way. A few of the
+/// latest are kept, within [`SERIES_LAG_CACHE_BYTES`].
+#[derive(Default)]
+pub(crate) struct SeriesLagCache(Mutex<Vec<(SeriesLagKey, Arc<SeriesLag>)>>);
+
+/// What a [`SeriesLag`] depends on.
+#[derive(PartialEq)]
+struct SeriesLagKey {
+    t_s: Vec<f64>,
+    bits: [u64; 3],
+}
+
+/// Most factor sets a [`SeriesLagCache`] keeps.
+const SERIES_LAGS_KEPT: usize = 4;
+
+/// Memory the kept factor sets may take, bytes (a long log keeps fewer, at least the latest).
+const SERIES_LAG_CACHE_BYTES: usize = 64 << 20;
+
+impl SeriesLagCache {
+    /// The factors of `first_s` then `then_s` over `t_s` at `lead`, made unless kept.
+    fn get_or_make(&self, t_s: &[f64], first_s: f64, then_s: f64, lead: f64) -> Arc<SeriesLag> {
+        let bits = [first_s.to_bits(), then_s.to_bits(), lead.to_bits()];
+        // A poisoned lock only means another search panicked; the list itself stays valid.
+        let lock = || self.0.lock().unwrap_or_else(|e| e.into_inner());
+        {
+            let mut kept = lock();
+            if let Some(i) = kept
+                .iter()
+                .position(|(k, _)| k.bits == bits && k.t_s == t_s)
+            {
+                let hit = kept.remove(i);
+                let factors = Arc::clone(&hit.1);
+                kept.insert(0, hit);
+                return factors;
+            }
+        }
+        // Made outside the lock: the candidates' searches run in parallel.
+        let factors = Arc::new(SeriesLag::new(t_s, first_s, then_s, lead));
+        let mut kept = lock();
+        let key = SeriesLagKey {
+            t_s: t_s.to_vec(),
+            bits,
+        };
+        let bytes = (std::mem::size_of_val(t_s) + factors.bytes()).max(1);
+        kept.insert(0, (key, Arc::clone(&factors)));
+        kept.truncate((SERIES_LAG_CACHE_BYTES / bytes).clamp(1, SERIES_LAGS_KEPT));
+        factors
     }
 }
 
@@ -291,24 +363,11 @@ fn lag_behind_spinup(
 /// `k` the two differ by `k / 2` times this column: the square of the lagged motor current
 /// less the lag of its square, A² (zero while the current holds, largest behind each step).
 /// The current is the replay's (less the avionics' `avionics_a`), whose shape is the nominal
-/// law's: a second-order term needs no more. The lag is `tau_s` behind a spin-up of
-/// `spinup_s` ([`lag_behind_spinup`]).
-fn square_behind_lag(
-    trace: &Trace,
-    avionics_a: f64,
-    spinup_s: f64,
-    tau_s: f64,
-    lead: f64,
-) -> Vec<f64> {
+/// law's: a second-order term needs no more. The lag is the field's, `lag`.
+fn square_behind_lag(trace: &Trace, avionics_a: f64, lag: &FieldLag) -> Vec<f64> {
     let mut current: Vec<f64> = trace.total_a.iter().map(|a| a - avionics_a).collect();
     let mut square: Vec<f64> = current.iter().map(|a| a * a).collect();
-    lag_behind_spinup(
-        &trace.t_s,
-        &mut [&mut current, &mut square],
-        spinup_s,
-        tau_s,
-        lead,
-    );
+    lag.apply(&mut [&mut current, &mut square]);
     current
         .iter()
         .zip(&square)
@@ -334,7 +393,6 @@ pub(crate) fn chi2_of(
 ) -> Option<f64> {
     fitted_with(ctx, terms, lead, weights).map(|f| f.chi2_fit)
 }
-
 /// The weighted fit of `terms` on the identification rows, or None where it cannot be fitted.
 pub(crate) fn fitted_with(
     ctx: &Context,

@@ -9,7 +9,7 @@ use crate::diagnosis::{CandidateResult, EffectReport, Round};
 use crate::effects::{Context, Effect};
 use crate::fit::{Fitted, Weights};
 use crate::locate::{Rows, Signal, locate};
-use crate::optimize::{minimize, minimize_near};
+use crate::optimize::{Precision, minimize, minimize_near, minimize_near_to};
 use crate::{DiagnoseConfig, DiagnoseError};
 
 use super::design::{ModelFit, Term, as_refs, chi2_of, fit_model, fitted_with};
@@ -137,16 +137,23 @@ fn try_candidate_from(
     let lag_at = |theta: &[f64]| {
         let l = refit_lag?;
         let lags = terms[l].effect.search(ctx);
-        minimize_near(&lags, Some(&terms[l].theta), |lag: &[f64]| {
-            let mut refs = base.clone();
-            refs[l].1 = lag;
-            chi2_of(
-                ctx,
-                &with_theta(&refs, effect, theta),
-                ctx.command_lead,
-                weights,
-            )
-        })
+        // The value alone at each of the candidate's points (and the lag's parameters at its
+        // optimum, from the same search): no uncertainty of the lag is reported from here.
+        minimize_near_to(
+            &lags,
+            Some(&terms[l].theta),
+            Precision::Value,
+            |lag: &[f64]| {
+                let mut refs = base.clone();
+                refs[l].1 = lag;
+                chi2_of(
+                    ctx,
+                    &with_theta(&refs, effect, theta),
+                    ctx.command_lead,
+                    weights,
+                )
+            },
+        )
     };
     let chi2 = |theta: &[f64]| match refit_lag {
         Some(_) => lag_at(theta).map(|o| o.value),

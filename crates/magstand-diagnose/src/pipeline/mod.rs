@@ -94,6 +94,7 @@ pub(crate) fn diagnose_with(
         motor_groups: crate::effects::motor_groups(&rec.thr),
         motor_current_law: None,
         replays: Default::default(),
+        series_lags: Default::default(),
     };
     let base = calibrate_baseline(&mut ctx, cfg)?;
     let rows = Rows::new(rec, &split.block);

@@ -4,7 +4,8 @@
 use crate::effects::Context;
 use crate::fit::Weights;
 use crate::optimize::{
-    Precision, Search, minimize, minimize_near, minimize_near_or_beyond, minimize_to, newton_step,
+    Precision, Search, minimize, minimize_near, minimize_near_or_beyond, minimize_near_to,
+    minimize_to, newton_step,
 };
 
 use super::design::{Term, as_refs, chi2_of};
@@ -158,24 +159,35 @@ fn delay_behind_slow_lag(ctx: &mut Context, terms: &mut [Term], weights: &Weight
     let (delays, lags) = (terms[d].effect.search(ctx), terms[l].effect.search(ctx));
     let lead = ctx.command_lead;
     let lag_from = terms[l].theta.clone();
+    let delay_from = terms[d].theta.clone();
     let shared: &Context = ctx;
     let held: &[Term] = terms;
-    // The lag's best near where it is, at `delay`: its chi-square and parameters.
-    let lag_at = |delay: &[f64]| {
-        minimize_near(&lags, Some(&lag_from), |lag: &[f64]| {
+    // The lag's best near where it is, at `delay`: its chi-square and parameters (with its
+    // uncertainty only where `precision` is fine: the profile uses the value alone).
+    let lag_at = |delay: &[f64], precision: Precision| {
+        minimize_near_to(&lags, Some(&lag_from), precision, |lag: &[f64]| {
             let mut refs = as_refs(held);
             refs[d].1 = delay;
             refs[l].1 = lag;
             chi2_of(shared, &refs, lead, weights)
         })
     };
+    let profile = |delay: &[f64]| lag_at(delay, Precision::Value).map(|o| o.value);
     let Some(now) = chi2_of(ctx, &as_refs(terms), lead, weights) else {
         return;
     };
-    let Some(delay) = minimize(&delays, |delay| lag_at(delay).map(|o| o.value)) else {
+    // A newest delay was profiled over its whole range as a candidate ([`slow_lag_beside_delay`]):
+    // it is searched near where it is, and over the whole range again only where that search
+    // runs to the end of its bracket. A newest lag's delay is profiled over its whole range.
+    let delay = if d == newest {
+        minimize_near_or_beyond(&delays, &delay_from, profile)
+    } else {
+        minimize(&delays, profile)
+    };
+    let Some(delay) = delay else {
         return;
     };
-    let Some(lag) = lag_at(&delay.theta).filter(|o| o.value < now) else {
+    let Some(lag) = lag_at(&delay.theta, Precision::Fine).filter(|o| o.value < now) else {
         return;
     };
     (terms[d].theta, terms[d].theta_sd) = (delay.theta, delay.sd);
