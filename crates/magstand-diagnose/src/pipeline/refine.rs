@@ -159,7 +159,6 @@ fn delay_behind_slow_lag(ctx: &mut Context, terms: &mut [Term], weights: &Weight
     let (delays, lags) = (terms[d].effect.search(ctx), terms[l].effect.search(ctx));
     let lead = ctx.command_lead;
     let lag_from = terms[l].theta.clone();
-    let delay_from = terms[d].theta.clone();
     let shared: &Context = ctx;
     let held: &[Term] = terms;
     // The lag's best near where it is, at `delay`: its chi-square and parameters (with its
@@ -176,14 +175,11 @@ fn delay_behind_slow_lag(ctx: &mut Context, terms: &mut [Term], weights: &Weight
     let Some(now) = chi2_of(ctx, &as_refs(terms), lead, weights) else {
         return;
     };
-    // A newest delay was profiled over its whole range as a candidate ([`slow_lag_beside_delay`]):
-    // it is searched near where it is, and over the whole range again only where that search
-    // runs to the end of its bracket. A newest lag's delay is profiled over its whole range.
-    let delay = if d == newest {
-        minimize_near_or_beyond(&delays, &delay_from, profile)
-    } else {
-        minimize(&delays, profile)
-    };
+    // Over the whole range even where the delay is newest and its candidate's fit profiled it
+    // so: the coordinate passes since moved the lead and the lag, and a search near the
+    // delay found (the whole range again only where it ran to the end of its bracket) left
+    // the default stand's and the hexacopter's lag + delay at 100 Hz, stated, a `hysteresis`.
+    let delay = minimize(&delays, profile);
     let Some(delay) = delay else {
         return;
     };
