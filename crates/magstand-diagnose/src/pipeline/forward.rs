@@ -9,7 +9,7 @@ use crate::diagnosis::{CandidateResult, EffectReport, Round};
 use crate::effects::{Context, Effect};
 use crate::fit::{Fitted, Weights};
 use crate::locate::{Rows, Signal, locate};
-use crate::optimize::{Precision, minimize, minimize_near, minimize_near_to};
+use crate::optimize::{Precision, minimize, minimize_near};
 use crate::{DiagnoseConfig, DiagnoseError};
 
 use super::design::{ModelFit, Term, as_refs, chi2_of, fit_model, fitted_with};
@@ -17,7 +17,7 @@ use super::gain::{
     block_improvements, block_improvements_on, gain_p_value, holdout_rmse, mean_gain, standardized,
     whiteness,
 };
-use super::refine::{refine, slow_lag_beside_delay};
+use super::refine::{lag_refitted, refine, slow_lag_beside_delay};
 
 /// The calibrated baseline the search starts from.
 pub(crate) struct BaselineFit {
@@ -134,25 +134,19 @@ fn try_candidate_from(
         all.push((effect, theta));
         all
     }
+    // The value alone at each of the candidate's points (and the lag's parameters at its
+    // optimum, from the same search): no uncertainty of the lag is reported from here.
     let lag_at = |theta: &[f64]| {
         let l = refit_lag?;
-        let lags = terms[l].effect.search(ctx);
-        // The value alone at each of the candidate's points (and the lag's parameters at its
-        // optimum, from the same search): no uncertainty of the lag is reported from here.
-        minimize_near_to(
-            &lags,
-            Some(&terms[l].theta),
+        let refs = with_theta(&base, effect, theta);
+        lag_refitted(
+            ctx,
+            &refs,
+            l,
+            &terms[l].theta,
+            ctx.command_lead,
+            weights,
             Precision::Value,
-            |lag: &[f64]| {
-                let mut refs = base.clone();
-                refs[l].1 = lag;
-                chi2_of(
-                    ctx,
-                    &with_theta(&refs, effect, theta),
-                    ctx.command_lead,
-                    weights,
-                )
-            },
         )
     };
     let chi2 = |theta: &[f64]| match refit_lag {

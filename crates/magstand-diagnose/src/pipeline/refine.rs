@@ -156,7 +156,7 @@ fn delay_behind_slow_lag(ctx: &mut Context, terms: &mut [Term], weights: &Weight
     if d != newest && l != newest {
         return;
     }
-    let (delays, lags) = (terms[d].effect.search(ctx), terms[l].effect.search(ctx));
+    let delays = terms[d].effect.search(ctx);
     let lead = ctx.command_lead;
     let lag_from = terms[l].theta.clone();
     let shared: &Context = ctx;
@@ -164,12 +164,9 @@ fn delay_behind_slow_lag(ctx: &mut Context, terms: &mut [Term], weights: &Weight
     // The lag's best near where it is, at `delay`: its chi-square and parameters (with its
     // uncertainty only where `precision` is fine: the profile uses the value alone).
     let lag_at = |delay: &[f64], precision: Precision| {
-        minimize_near_to(&lags, Some(&lag_from), precision, |lag: &[f64]| {
-            let mut refs = as_refs(held);
-            refs[d].1 = delay;
-            refs[l].1 = lag;
-            chi2_of(shared, &refs, lead, weights)
-        })
+        let mut refs = as_refs(held);
+        refs[d].1 = delay;
+        lag_refitted(shared, &refs, l, &lag_from, lead, weights, precision)
     };
     let profile = |delay: &[f64]| lag_at(delay, Precision::Value).map(|o| o.value);
     let Some(now) = chi2_of(ctx, &as_refs(terms), lead, weights) else {
@@ -189,6 +186,27 @@ fn delay_behind_slow_lag(ctx: &mut Context, terms: &mut [Term], weights: &Weight
     (terms[d].theta, terms[d].theta_sd) = (delay.theta, delay.sd);
     (terms[l].theta, terms[l].theta_sd) = (lag.theta, lag.sd);
     ctx.command_lead = calibrate_timing_from(ctx, terms, weights, Some(lead));
+}
+
+/// The best fit of `terms` with the parameters of term `l` (a slow lag) searched near `from`,
+/// the others held, at `lead`, to `precision`: what the delay's profile beside the lag
+/// minimizes, in the candidate's fit ([`slow_lag_beside_delay`]) and in the refinement
+/// ([`delay_behind_slow_lag`]).
+pub(crate) fn lag_refitted(
+    ctx: &Context,
+    terms: &[(&dyn crate::effects::Effect, &[f64])],
+    l: usize,
+    from: &[f64],
+    lead: f64,
+    weights: &Weights,
+    precision: Precision,
+) -> Option<crate::optimize::Optimum> {
+    let lags = terms[l].0.search(ctx);
+    minimize_near_to(&lags, Some(from), precision, |lag: &[f64]| {
+        let mut refs = terms.to_vec();
+        refs[l].1 = lag;
+        chi2_of(ctx, &refs, lead, weights)
+    })
 }
 
 /// Most Newton steps [`valley_steps`] takes.
