@@ -1051,3 +1051,32 @@ fn a_slow_lag_beside_a_late_magnetometer_is_named_with_both_times() {
         );
     }
 }
+
+/// Regression: a change of this session (the twenty-fifth) searched a newest late
+/// magnetometer's delay only near where it was in the refinement's profile beside a slow lag,
+/// since its candidate's fit had profiled the whole range. The coordinate passes between
+/// the two had moved the lead and the lag, and the same case sampled at 100 Hz, stated, was
+/// named `current_lag, time_offset, hysteresis` (default stand and hexacopter, seed 1). The
+/// refinement's profile searches the whole range again.
+#[test]
+fn a_slow_lag_beside_a_late_magnetometer_at_100_hz_is_named_with_both_times() {
+    use magstand_tests::independent::{Mode, run_case_on};
+    let stand = Stand {
+        rate_hz: 100.0,
+        ..Stand::default()
+    };
+    let o = run_case_on(
+        &stand,
+        &suite_case("current lag + time offset"),
+        Mode::Stated,
+        1,
+    );
+    let mut verdict = o.verdict.clone();
+    verdict.sort();
+    assert_eq!(
+        verdict,
+        ["current_lag", "time_offset"],
+        "{}",
+        o.diagnosis.summary()
+    );
+}
