@@ -99,6 +99,7 @@ fn noise_referenced(before: &[Vec3], after: &[Vec3], w: &Weights, split: &Split)
         return None;
     }
     let lags = (n / split.holdout_blocks().max(1)).clamp(1, 400);
+    let runs = block_runs(&rows, split);
     let mut s = 0.0;
     let mut var = 0.0;
     for a in 0..3 {
@@ -113,12 +114,23 @@ fn noise_referenced(before: &[Vec3], after: &[Vec3], w: &Weights, split: &Split)
         s += z.iter().zip(&d).map(|(z, d)| 2.0 * z * d).sum::<f64>();
         for k in 0..=lags.min(n - 1) {
             let (mut gamma, mut c, mut pairs) = (0.0, 0.0, 0usize);
-            for i in 0..n - k {
-                if split.block[rows[i]] == split.block[rows[i + k]] {
-                    gamma += z[i] * z[i + k];
-                    c += d[i] * d[i + k];
-                    pairs += 1;
+            let mut pair = |i: usize| {
+                gamma += z[i] * z[i + k];
+                c += d[i] * d[i + k];
+                pairs += 1;
+            };
+            match &runs {
+                // Each block's pairs in turn: the same pairs in the same order as the scan
+                // below, without the rows of other blocks (most of them, at a lag near a
+                // block's length).
+                Some(runs) => {
+                    for run in runs {
+                        (run.start..run.end.saturating_sub(k)).for_each(&mut pair);
+                    }
                 }
+                None => (0..n - k)
+                    .filter(|&i| split.block[rows[i]] == split.block[rows[i + k]])
+                    .for_each(&mut pair),
             }
             if pairs == 0 {
                 continue;
@@ -136,6 +148,25 @@ fn noise_referenced(before: &[Vec3], after: &[Vec3], w: &Weights, split: &Split)
         return None;
     }
     Some(normal_sf(s / var.sqrt()))
+}
+
+/// The stretches of `rows` (increasing) that lie in one block each, where the rows' blocks
+/// never decrease (a block's rows are then one stretch, and two rows share a block only
+/// within one); None where they do.
+fn block_runs(rows: &[usize], split: &Split) -> Option<Vec<std::ops::Range<usize>>> {
+    let block = |i: usize| split.block[rows[i]];
+    if (1..rows.len()).any(|i| block(i) < block(i - 1)) {
+        return None;
+    }
+    let mut runs = Vec::new();
+    let mut start = 0;
+    for i in 1..=rows.len() {
+        if i == rows.len() || block(i) != block(start) {
+            runs.push(start..i);
+            start = i;
+        }
+    }
+    Some(runs)
 }
 
 /// Standardized residuals (divided by the noise sd).
@@ -161,4 +192,87 @@ pub(crate) fn residual_structure(z: &[Vec3], split: &Split) -> [LjungBox; 3] {
         let za: Vec<f64> = rows.iter().map(|&r| z[r][a]).collect();
         ljung_box(&za, &seg, LAGS)
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The noise-referenced test sums its lagged products block by block where the held-out
+    /// rows' blocks never decrease: the same bits as the scan over every pair of rows that
+    /// keeps the pairs within one block (what it was before), and the scan itself where
+    /// blocks do decrease.
+    #[test]
+    fn block_by_block_sums_equal_the_scan_over_all_pairs() {
+        let n = 3000;
+        let t_s: Vec<f64> = (0..n).map(|r| r as f64 * 0.02).collect();
+        let split = Split::new(&t_s, 1.0, 3);
+        let wobble = |r: usize, a: usize| ((r * 7 + a * 13) % 17) as f64 / 17.0 - 0.5;
+        let before: Vec<Vec3> = (0..n)
+            .map(|r| Vec3::new(wobble(r, 0), wobble(r, 1), wobble(r, 2)) + Vec3::repeat(0.1))
+            .collect();
+        let after: Vec<Vec3> = before.iter().map(|v| v * 0.8).collect();
+        let w = Weights(vec![[1.0, 2.0, 0.5]; n]);
+        // The scan over all pairs, as the test computed it before block runs.
+        let scan = |split: &Split| {
+            let rows: Vec<usize> = (0..n).filter(|&r| split.holdout[r]).collect();
+            let m = rows.len();
+            let lags = (m / split.holdout_blocks().max(1)).clamp(1, 400);
+            let (mut s, mut var) = (0.0, 0.0);
+            for a in 0..3 {
+                let z: Vec<f64> = rows
+                    .iter()
+                    .map(|&r| before[r][a] * w.0[r][a].sqrt())
+                    .collect();
+                let d: Vec<f64> = rows
+                    .iter()
+                    .map(|&r| (before[r][a] - after[r][a]) * w.0[r][a].sqrt())
+                    .collect();
+                s += z.iter().zip(&d).map(|(z, d)| 2.0 * z * d).sum::<f64>();
+                for k in 0..=lags.min(m - 1) {
+                    let (mut gamma, mut c, mut pairs) = (0.0, 0.0, 0usize);
+                    for i in 0..m - k {
+                        if split.block[rows[i]] == split.block[rows[i + k]] {
+                            gamma += z[i] * z[i + k];
+                            c += d[i] * d[i + k];
+                            pairs += 1;
+                        }
+                    }
+                    if pairs > 0 {
+                        let weight = if k == 0 {
+                            1.0
+                        } else {
+                            2.0 * (1.0 - k as f64 / (lags + 1) as f64)
+                        };
+                        var += 4.0 * weight * (gamma / pairs as f64) * c;
+                    }
+                }
+            }
+            normal_sf(s / f64::sqrt(var))
+        };
+        let runs = noise_referenced(&before, &after, &w, &split);
+        assert!(
+            block_runs(
+                &(0..n).filter(|&r| split.holdout[r]).collect::<Vec<_>>(),
+                &split
+            )
+            .is_some()
+        );
+        assert_eq!(
+            runs.map(f64::to_bits),
+            Some(scan(&split).to_bits()),
+            "{runs:?}"
+        );
+        // Blocks numbered out of order: the scan's path.
+        let mut shuffled = split.clone();
+        for b in shuffled.block.iter_mut() {
+            *b = (*b * 7) % 11;
+        }
+        let p = noise_referenced(&before, &after, &w, &shuffled);
+        assert_eq!(
+            p.map(f64::to_bits),
+            Some(scan(&shuffled).to_bits()),
+            "{p:?}"
+        );
+    }
 }
