@@ -93,13 +93,26 @@ pub(crate) fn gain_p_value(
 /// only fits noise; its variance uses the autocovariance of the before-residuals up to one
 /// block's length, so structure that is not white does not pass for a gain.
 fn noise_referenced(before: &[Vec3], after: &[Vec3], w: &Weights, split: &Split) -> Option<f64> {
+    noise_referenced_by(before, after, w, split, true)
+}
+
+/// [`noise_referenced`], its lagged products summed block by block where `by_block` and the
+/// held-out rows' blocks never decrease ([`block_runs`]), else by a scan over every pair of
+/// rows that keeps the pairs within one block: the same pairs in the same order either way.
+fn noise_referenced_by(
+    before: &[Vec3],
+    after: &[Vec3],
+    w: &Weights,
+    split: &Split,
+    by_block: bool,
+) -> Option<f64> {
     let rows: Vec<usize> = (0..before.len()).filter(|&r| split.holdout[r]).collect();
     let n = rows.len();
     if n < 10 {
         return None;
     }
     let lags = (n / split.holdout_blocks().max(1)).clamp(1, 400);
-    let runs = block_runs(&rows, split);
+    let runs = by_block.then(|| block_runs(&rows, split)).flatten();
     let mut s = 0.0;
     let mut var = 0.0;
     for a in 0..3 {
@@ -200,8 +213,8 @@ mod tests {
 
     /// The noise-referenced test sums its lagged products block by block where the held-out
     /// rows' blocks never decrease: the same bits as the scan over every pair of rows that
-    /// keeps the pairs within one block (what it was before), and the scan itself where
-    /// blocks do decrease.
+    /// keeps the pairs within one block (how it summed them before), and the scan itself
+    /// where blocks do decrease.
     #[test]
     fn block_by_block_sums_equal_the_scan_over_all_pairs() {
         let n = 3000;
@@ -213,66 +226,20 @@ mod tests {
             .collect();
         let after: Vec<Vec3> = before.iter().map(|v| v * 0.8).collect();
         let w = Weights(vec![[1.0, 2.0, 0.5]; n]);
-        // The scan over all pairs, as the test computed it before block runs.
-        let scan = |split: &Split| {
-            let rows: Vec<usize> = (0..n).filter(|&r| split.holdout[r]).collect();
-            let m = rows.len();
-            let lags = (m / split.holdout_blocks().max(1)).clamp(1, 400);
-            let (mut s, mut var) = (0.0, 0.0);
-            for a in 0..3 {
-                let z: Vec<f64> = rows
-                    .iter()
-                    .map(|&r| before[r][a] * w.0[r][a].sqrt())
-                    .collect();
-                let d: Vec<f64> = rows
-                    .iter()
-                    .map(|&r| (before[r][a] - after[r][a]) * w.0[r][a].sqrt())
-                    .collect();
-                s += z.iter().zip(&d).map(|(z, d)| 2.0 * z * d).sum::<f64>();
-                for k in 0..=lags.min(m - 1) {
-                    let (mut gamma, mut c, mut pairs) = (0.0, 0.0, 0usize);
-                    for i in 0..m - k {
-                        if split.block[rows[i]] == split.block[rows[i + k]] {
-                            gamma += z[i] * z[i + k];
-                            c += d[i] * d[i + k];
-                            pairs += 1;
-                        }
-                    }
-                    if pairs > 0 {
-                        let weight = if k == 0 {
-                            1.0
-                        } else {
-                            2.0 * (1.0 - k as f64 / (lags + 1) as f64)
-                        };
-                        var += 4.0 * weight * (gamma / pairs as f64) * c;
-                    }
-                }
-            }
-            normal_sf(s / f64::sqrt(var))
-        };
-        let runs = noise_referenced(&before, &after, &w, &split);
-        assert!(
-            block_runs(
-                &(0..n).filter(|&r| split.holdout[r]).collect::<Vec<_>>(),
-                &split
-            )
-            .is_some()
-        );
-        assert_eq!(
-            runs.map(f64::to_bits),
-            Some(scan(&split).to_bits()),
-            "{runs:?}"
-        );
-        // Blocks numbered out of order: the scan's path.
+        let held_out: Vec<usize> = (0..n).filter(|&r| split.holdout[r]).collect();
+        assert!(block_runs(&held_out, &split).is_some_and(|runs| runs.len() > 10));
+        let by_block = noise_referenced(&before, &after, &w, &split);
+        let scanned = noise_referenced_by(&before, &after, &w, &split, false);
+        assert!(by_block.is_some_and(|p| p < 1e-3), "{by_block:?}");
+        assert_eq!(by_block.map(f64::to_bits), scanned.map(f64::to_bits));
+        // Blocks numbered out of order: no runs, the scan's path.
         let mut shuffled = split.clone();
         for b in shuffled.block.iter_mut() {
             *b = (*b * 7) % 11;
         }
+        assert!(block_runs(&held_out, &shuffled).is_none());
         let p = noise_referenced(&before, &after, &w, &shuffled);
-        assert_eq!(
-            p.map(f64::to_bits),
-            Some(scan(&shuffled).to_bits()),
-            "{p:?}"
-        );
+        let scanned = noise_referenced_by(&before, &after, &w, &shuffled, false);
+        assert_eq!(p.map(f64::to_bits), scanned.map(f64::to_bits), "{p:?}");
     }
 }
