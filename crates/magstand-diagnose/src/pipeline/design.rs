@@ -5,12 +5,10 @@ use std::sync::{Arc, Mutex};
 
 use magstand_core::Vec3;
 use magstand_sim::Scenario;
-
-use crate::effects::SeriesLag;
 use magstand_sim::replay::{Logged, Trace, replay_logged};
 
 use crate::DiagnoseError;
-use crate::effects::{Context, Effect};
+use crate::effects::{Context, Effect, SeriesLag};
 use crate::fit::{Design, Fitted, VarianceModel, Weights, fit};
 
 /// An effect in the model with its nonlinear parameters.
@@ -66,6 +64,47 @@ impl Built {
     }
 }
 
+/// The latest few values made, each with what it was made from, most recent first: the
+/// searches ask for the same ones many times (a replay, a lag's maps). How many are kept is
+/// what the caller says for the value just made.
+struct LatestKept<K, V>(Mutex<Vec<(K, Arc<V>)>>);
+
+impl<K, V> Default for LatestKept<K, V> {
+    fn default() -> Self {
+        LatestKept(Mutex::new(Vec::new()))
+    }
+}
+
+impl<K, V> LatestKept<K, V> {
+    /// The kept value whose key `matches`, or the one `make` makes (kept under `key()`, with
+    /// the `keep(&value)` latest); the value used goes first.
+    fn get_or_make(
+        &self,
+        matches: impl Fn(&K) -> bool,
+        key: impl FnOnce() -> K,
+        make: impl FnOnce() -> V,
+        keep: impl FnOnce(&V) -> usize,
+    ) -> Arc<V> {
+        // A poisoned lock only means another search panicked; the list itself stays valid.
+        let lock = || self.0.lock().unwrap_or_else(|e| e.into_inner());
+        {
+            let mut kept = lock();
+            if let Some(i) = kept.iter().position(|(k, _)| matches(k)) {
+                let hit = kept.remove(i);
+                let value = Arc::clone(&hit.1);
+                kept.insert(0, hit);
+                return value;
+            }
+        }
+        // Made outside the lock: the candidates' searches run in parallel.
+        let value = Arc::new(make());
+        let mut kept = lock();
+        kept.insert(0, (key(), Arc::clone(&value)));
+        kept.truncate(keep(&value).max(1));
+        value
+    }
+}
+
 /// Replays of the recording already made, by the physics and the timing they were made with
 /// (the magnetometer's delay left out where the motors are coupled and the replay is shifted
 /// instead): the searches evaluate the same physics many times (an effect whose parameters
@@ -73,10 +112,9 @@ impl Built {
 /// physics in every round). A few of the latest are kept, within
 /// [`REPLAY_CACHE_BYTES`].
 #[derive(Default)]
-pub(crate) struct ReplayCache(Mutex<Vec<(ReplayKey, Arc<Trace>)>>);
+pub(crate) struct ReplayCache(LatestKept<ReplayKey, Trace>);
 
 /// What a replay depends on.
-#[derive(PartialEq)]
 struct ReplayKey {
     scenario: Scenario,
     lead_bits: u64,
@@ -107,30 +145,30 @@ impl ReplayCache {
         logged: Logged,
         make: impl FnOnce() -> Trace,
     ) -> Arc<Trace> {
-        let key = ReplayKey {
-            scenario: scenario.clone(),
-            lead_bits: lead.to_bits(),
-            recorded_voltage: logged.bat_v.is_some(),
-            recorded_current: logged.bat_a.is_some(),
-        };
-        // A poisoned lock only means another search panicked; the list itself stays valid.
-        let lock = || self.0.lock().unwrap_or_else(|e| e.into_inner());
-        {
-            let mut kept = lock();
-            if let Some(i) = kept.iter().position(|(k, _)| *k == key) {
-                let hit = kept.remove(i);
-                let trace = Arc::clone(&hit.1);
-                kept.insert(0, hit);
-                return trace;
-            }
-        }
-        // Made outside the lock: the candidates' searches run in parallel.
-        let trace = Arc::new(make());
-        let mut kept = lock();
-        kept.insert(0, (key, Arc::clone(&trace)));
-        let fit = (REPLAY_CACHE_BYTES / trace_bytes(&trace).max(1)).clamp(1, REPLAYS_KEPT);
-        kept.truncate(fit);
-        trace
+        let (lead_bits, recorded_voltage, recorded_current) = (
+            lead.to_bits(),
+            logged.bat_v.is_some(),
+            logged.bat_a.is_some(),
+        );
+        self.0.get_or_make(
+            // Every field named (no `..`): a field added to the key is compared here too.
+            |ReplayKey {
+                 scenario: s,
+                 lead_bits: l,
+                 recorded_voltage: v,
+                 recorded_current: c,
+             }| {
+                (*l, *v, *c) == (lead_bits, recorded_voltage, recorded_current) && s == scenario
+            },
+            || ReplayKey {
+                scenario: scenario.clone(),
+                lead_bits,
+                recorded_voltage,
+                recorded_current,
+            },
+            make,
+            |trace| (REPLAY_CACHE_BYTES / trace_bytes(trace).max(1)).clamp(1, REPLAYS_KEPT),
+        )
     }
 }
 
@@ -310,10 +348,9 @@ impl<'t> FieldLag<'t> {
 /// step of a search of anything but the lag, lags its columns the same way. A few of the
 /// latest are kept, within [`SERIES_LAG_CACHE_BYTES`].
 #[derive(Default)]
-pub(crate) struct SeriesLagCache(Mutex<Vec<(SeriesLagKey, Arc<SeriesLag>)>>);
+pub(crate) struct SeriesLagCache(LatestKept<SeriesLagKey, SeriesLag>);
 
 /// What a [`SeriesLag`] depends on.
-#[derive(PartialEq)]
 struct SeriesLagKey {
     t_s: Vec<f64>,
     bits: [u64; 3],
@@ -326,34 +363,22 @@ const SERIES_LAGS_KEPT: usize = 4;
 const SERIES_LAG_CACHE_BYTES: usize = 64 << 20;
 
 impl SeriesLagCache {
-    /// The factors of `first_s` then `then_s` over `t_s` at `lead`, made unless kept.
+    /// The factors of `first_s` then `then_s` over `t_s` at `lead`, made unless kept (the
+    /// times compared where kept, copied only for factors made).
     fn get_or_make(&self, t_s: &[f64], first_s: f64, then_s: f64, lead: f64) -> Arc<SeriesLag> {
         let bits = [first_s.to_bits(), then_s.to_bits(), lead.to_bits()];
-        // A poisoned lock only means another search panicked; the list itself stays valid.
-        let lock = || self.0.lock().unwrap_or_else(|e| e.into_inner());
-        {
-            let mut kept = lock();
-            if let Some(i) = kept
-                .iter()
-                .position(|(k, _)| k.bits == bits && k.t_s == t_s)
-            {
-                let hit = kept.remove(i);
-                let factors = Arc::clone(&hit.1);
-                kept.insert(0, hit);
-                return factors;
-            }
-        }
-        // Made outside the lock: the candidates' searches run in parallel.
-        let factors = Arc::new(SeriesLag::new(t_s, first_s, then_s, lead));
-        let mut kept = lock();
-        let key = SeriesLagKey {
-            t_s: t_s.to_vec(),
-            bits,
-        };
-        let bytes = (std::mem::size_of_val(t_s) + factors.bytes()).max(1);
-        kept.insert(0, (key, Arc::clone(&factors)));
-        kept.truncate((SERIES_LAG_CACHE_BYTES / bytes).clamp(1, SERIES_LAGS_KEPT));
-        factors
+        self.0.get_or_make(
+            |k| k.bits == bits && k.t_s == t_s,
+            || SeriesLagKey {
+                t_s: t_s.to_vec(),
+                bits,
+            },
+            || SeriesLag::new(t_s, first_s, then_s, lead),
+            |factors| {
+                let bytes = (std::mem::size_of_val(t_s) + factors.bytes()).max(1);
+                (SERIES_LAG_CACHE_BYTES / bytes).clamp(1, SERIES_LAGS_KEPT)
+            },
+        )
     }
 }
 
@@ -393,6 +418,7 @@ pub(crate) fn chi2_of(
 ) -> Option<f64> {
     fitted_with(ctx, terms, lead, weights).map(|f| f.chi2_fit)
 }
+
 /// The weighted fit of `terms` on the identification rows, or None where it cannot be fitted.
 pub(crate) fn fitted_with(
     ctx: &Context,

@@ -176,8 +176,7 @@ fn delay_behind_slow_lag(ctx: &mut Context, terms: &mut [Term], weights: &Weight
     // so: the coordinate passes since moved the lead and the lag, and a search near the
     // delay found (the whole range again only where it ran to the end of its bracket) left
     // the default stand's and the hexacopter's lag + delay at 100 Hz, stated, a `hysteresis`.
-    let delay = minimize(&delays, profile);
-    let Some(delay) = delay else {
+    let Some(delay) = minimize(&delays, profile) else {
         return;
     };
     let Some(lag) = lag_at(&delay.theta, Precision::Fine).filter(|o| o.value < now) else {
