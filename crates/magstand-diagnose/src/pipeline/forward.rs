@@ -198,6 +198,47 @@ fn try_candidate_from(
     }
 }
 
+/// The richer forms fitted beside the model as it stands, by form and start. A round whose
+/// finding is refused after its refinement leaves the model as it was, and the round tried
+/// again fits the same forms from the same starts: each fit is kept until the model changes
+/// (each of its searches a replay per point, a coupled one for a battery without `bat_v`).
+#[derive(Default)]
+struct RicherFits(Vec<(Vec<u64>, Candidate)>);
+
+impl RicherFits {
+    /// The key of `form` fitted from `from`: its name, its variant and the start's bits.
+    fn key(form: &dyn Effect, from: Option<&[f64]>) -> Vec<u64> {
+        fn name(s: &str) -> impl Iterator<Item = u64> + '_ {
+            s.bytes().map(u64::from).chain([u64::MAX])
+        }
+        name(form.name())
+            .chain(name(form.variant().unwrap_or("")))
+            .chain(from.into_iter().flatten().map(|v| v.to_bits()))
+            .collect()
+    }
+
+    /// `form` fitted from `from` beside the model as it stands: kept, or made by `fit` and
+    /// kept. The note is the caller's to give.
+    fn get_or_fit(
+        &mut self,
+        form: &dyn Effect,
+        from: Option<&[f64]>,
+        fit: impl FnOnce() -> Candidate,
+    ) -> Candidate {
+        let key = Self::key(form, from);
+        let mut c = match self.0.iter().find(|(k, _)| *k == key) {
+            Some((_, c)) => c.clone(),
+            None => {
+                let c = fit();
+                self.0.push((key, c.clone()));
+                c
+            }
+        };
+        c.result.note = None;
+        c
+    }
+}
+
 /// Whether `a` and `b` are the same form of the same effect.
 fn same_form(a: &dyn Effect, b: &dyn Effect) -> bool {
     a.name() == b.name() && a.variant() == b.variant()
@@ -217,7 +258,7 @@ fn significant(c: &CandidateResult, threshold: f64) -> bool {
 /// determination. Where it joins, its larger gain ranks it first, and the forms before it
 /// stay for the case that it does not replicate. Returns the results of the forms refused,
 /// with why, for the round's record. A form `refused` (at an edge in an earlier round) is not
-/// tried again.
+/// tried again. The forms fitted beside this model in an earlier round are taken from `fits`.
 #[allow(clippy::too_many_arguments)]
 fn try_richer_forms(
     ctx: &Context,
@@ -229,6 +270,7 @@ fn try_richer_forms(
     threshold: f64,
     refused: impl Fn(&dyn Effect) -> bool,
     limits: &[&'static dyn Effect],
+    fits: &mut RicherFits,
 ) -> Vec<CandidateResult> {
     let y = &ctx.rec.mag_ut;
     let mut others = Vec::new();
@@ -281,7 +323,9 @@ fn try_richer_forms(
                 .as_ref()
                 .map(|(theta, _, _)| theta.as_slice())
                 .filter(|_| richer.parameters() == open[i].parameters());
-            let mut rich = try_candidate_from(ctx, terms, richer, w, before, from, None);
+            let mut rich = fits.get_or_fit(richer, from, || {
+                try_candidate_from(ctx, terms, richer, w, before, from, None)
+            });
             // A form fitted at the edge of a parameter's range has the limit that edge stands
             // for tried beside it.
             let limit = rich
@@ -757,6 +801,8 @@ pub(crate) fn forward_search<'e>(
     let mut latest: Option<ModelFit> = None;
     let mut calibrating = true;
     let mut unchanged: Vec<Candidate> = Vec::new();
+    // The richer forms fitted beside the model as it stands (kept while rounds are refused).
+    let mut richer_fits = RicherFits::default();
     // Findings whose refined parameters ran to the edge of their range: not tried again.
     // By form: a richer form refused at an edge leaves the catalog's form to be tried.
     let mut indeterminate: Vec<(&str, Option<&str>)> = Vec::new();
@@ -831,7 +877,16 @@ pub(crate) fn forward_search<'e>(
         } else {
             let refused = |e: &dyn Effect| indeterminate.contains(&(e.name(), e.variant()));
             try_richer_forms(
-                shared, &terms, &mut open, &mut tried, w, &before, threshold, refused, &limits,
+                shared,
+                &terms,
+                &mut open,
+                &mut tried,
+                w,
+                &before,
+                threshold,
+                refused,
+                &limits,
+                &mut richer_fits,
             )
         };
         let mut significant: Vec<usize> = (0..tried.len())
@@ -996,6 +1051,7 @@ pub(crate) fn forward_search<'e>(
             restate_gains(ctx, &terms, w, &mut reports, &mut stages[1..], restate_from);
         }
         latest = Some(fit_model(ctx, &terms, Some(w))?);
+        richer_fits = RicherFits::default();
         rounds.push(round);
     }
     Ok(SearchOutcome {
@@ -1013,6 +1069,31 @@ mod tests {
     use super::*;
     use crate::effects::TestStand;
     use crate::locate::Location;
+
+    /// A round refused after its refinement leaves the model as it was, and the round tried
+    /// again takes each richer form fitted from the same start from the store instead of
+    /// fitting it again; another form, or the same form from another start, is fitted.
+    #[test]
+    fn a_richer_form_fitted_from_the_same_start_is_kept() {
+        let free = crate::effects::find("battery_sag", Some("free_discharge")).expect("a form");
+        let drawn = crate::effects::find("battery_sag", Some("drawn_charge")).expect("a form");
+        let mut fits = RicherFits::default();
+        let fitted = std::cell::Cell::new(0);
+        let mut fit = |form: &dyn Effect, from: Option<&[f64]>| {
+            fits.get_or_fit(form, from, || {
+                fitted.set(fitted.get() + 1);
+                Candidate::not_fitted(form, "a note of the round")
+            })
+        };
+        let first = fit(free, Some(&[0.01, 3.0]));
+        assert_eq!(first.result.note, None, "the note is the caller's to give");
+        fit(free, Some(&[0.01, 3.0]));
+        assert_eq!(fitted.get(), 1, "the same form from the same start is kept");
+        fit(free, Some(&[0.01, 3.0000000001]));
+        fit(free, None);
+        fit(drawn, Some(&[0.01, 3.0]));
+        assert_eq!(fitted.get(), 4, "another start or another form is fitted");
+    }
 
     /// After a withdrawal, every finding from the first place it emptied on is restated on the
     /// model as it stands (no recording of the suites withdraws one with two or more named
