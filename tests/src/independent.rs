@@ -163,6 +163,20 @@ pub fn cases() -> Vec<Case> {
             false,
             false,
         ),
+        // A battery beside a slow lag: the current that lags is the one the voltage drives and
+        // the one the pack's sag follows (the twenty-sixth session's; last, as above).
+        case(
+            "battery sag + current lag",
+            vec![Effect::BatterySag, Effect::CurrentLag { tau_s: 0.5 }],
+            true,
+            false,
+        ),
+        case(
+            "battery sag + current lag, bat_v not logged",
+            vec![Effect::BatterySag, Effect::CurrentLag { tau_s: 0.5 }],
+            false,
+            false,
+        ),
     ]
 }
 

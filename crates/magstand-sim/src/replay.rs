@@ -223,6 +223,75 @@ pub fn replay_logged(
     logged: Logged,
     command_lead: f64,
 ) -> Trace {
+    replay_behind_lags(scenario, t_s, thr, logged, command_lead, SupplyLags::NONE)
+}
+
+/// First-order lags, s, in series, through which the supply sees the motors' current where
+/// a replay steps each command in full at its moment and the current itself lags behind it
+/// (a diagnosis lags the replay's current columns afterwards, by a lag slower than any
+/// spin-up and the spin-up behind it). A battery's sag under load, and the charge drawn,
+/// then follow the lagged current, as the current that flows does; a sag that followed the
+/// unlagged current would move the voltage a lag's length early at every step. A zero time
+/// constant is no lag.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct SupplyLags(pub [f64; 2]);
+
+impl SupplyLags {
+    /// No lag: the supply sees the replayed current.
+    pub const NONE: SupplyLags = SupplyLags([0.0; 2]);
+
+    /// Whether any of the lags is a lag.
+    fn any(&self) -> bool {
+        self.0.iter().any(|&tau| tau > 0.0)
+    }
+}
+
+/// The current the supply sees behind [`SupplyLags`], A, with each lag's factor kept for the
+/// step length last asked.
+#[derive(Debug, Clone, Copy)]
+struct SeenCurrent {
+    factors: [Option<LagFactor>; 2],
+    states: [f64; 2],
+}
+
+impl SeenCurrent {
+    /// At `initial_a` (the supply current before the first command), behind `lags`.
+    fn new(lags: SupplyLags, initial_a: f64) -> Self {
+        SeenCurrent {
+            factors: lags.0.map(|tau| (tau > 0.0).then(|| LagFactor::new(tau))),
+            states: [initial_a; 2],
+        }
+    }
+
+    /// The current seen now, A.
+    fn now_a(&self) -> f64 {
+        self.states[1]
+    }
+
+    /// Steps the lags toward `total_a` over `h` s (each lag's input held over the step) and
+    /// returns the current seen over it (its value at the step's end).
+    fn step(&mut self, total_a: f64, h: f64) -> f64 {
+        let mut input = total_a;
+        for (state, factor) in self.states.iter_mut().zip(&mut self.factors) {
+            *state = match factor {
+                Some(f) => *state + (input - *state) * f.of(h),
+                None => input,
+            };
+            input = *state;
+        }
+        input
+    }
+}
+
+/// [`replay_logged`] with the supply seeing the motors' current behind `supply_lags`.
+pub fn replay_behind_lags(
+    scenario: &Scenario,
+    t_s: &[f64],
+    thr: &[Vec<f64>],
+    logged: Logged,
+    command_lead: f64,
+    supply_lags: SupplyLags,
+) -> Trace {
     let p = scenario;
     let Logged { bat_v, bat_a } = logged;
     // The current the stand modules see at a place (row, fraction of the interval after it):
@@ -317,6 +386,9 @@ pub fn replay_logged(
         acting: vec![0; n_motors],
         supply: SupplyState::default(),
         total_a: avionics,
+        seen: supply_lags
+            .any()
+            .then(|| SeenCurrent::new(supply_lags, avionics)),
         parts: stand_parts,
     };
     let stepper = CoupledStepper {
@@ -394,8 +466,18 @@ struct CoupledState {
     supply: SupplyState,
     /// The supply current after the last substep, A.
     total_a: f64,
+    /// The current the supply sees behind its lags, where it has any.
+    seen: Option<SeenCurrent>,
     /// The stand modules that add a field.
     parts: Vec<Box<dyn StandModule>>,
+}
+
+impl CoupledState {
+    /// The current the supply's voltage sags with, A: the last substep's, or behind the
+    /// supply's lags.
+    fn sag_a(&self) -> f64 {
+        self.seen.as_ref().map_or(self.total_a, SeenCurrent::now_a)
+    }
 }
 
 impl Clone for CoupledState {
@@ -406,6 +488,7 @@ impl Clone for CoupledState {
             acting: self.acting.clone(),
             supply: self.supply,
             total_a: self.total_a,
+            seen: self.seen,
             parts: self.parts.clone(),
         }
     }
@@ -417,6 +500,7 @@ impl Clone for CoupledState {
         self.acting.clone_from(&source.acting);
         self.supply = source.supply;
         self.total_a = source.total_a;
+        self.seen = source.seen;
         self.parts.clone_from(&source.parts);
     }
 }
@@ -444,7 +528,7 @@ impl CoupledStepper<'_> {
         lead_from: f64,
         spinup: &mut LagFactor,
     ) {
-        let voltage = (self.voltage_at)(&st.supply, (r - 1, 0.0), st.total_a);
+        let voltage = (self.voltage_at)(&st.supply, (r - 1, 0.0), st.sag_a());
         let parts = split_at_switch(r, a, b, lead_from);
         // Every motor steps by the same lengths: one lag factor each, none for a part of no
         // length (it steps no motor), and the last one kept for a length seen again (the
@@ -468,7 +552,11 @@ impl CoupledStepper<'_> {
             total_a += ms.current_a;
         }
         st.total_a = total_a;
-        st.supply.step(total_a, h);
+        let drawn_a = match st.seen.as_mut() {
+            Some(seen) => seen.step(total_a, h),
+            None => total_a,
+        };
+        st.supply.step(drawn_a, h);
         let electrical = Electrical {
             total_a: (self.supply_a)((r - 1, 0.0), total_a),
             voltage_v: voltage,
@@ -497,7 +585,7 @@ impl CoupledReader<'_> {
     fn feed(&self, st: &mut CoupledState, place: (usize, f64)) -> (Electrical, Vec3) {
         let electrical = Electrical {
             total_a: (self.supply_a)(place, st.total_a),
-            voltage_v: (self.voltage_at)(&st.supply, place, st.total_a),
+            voltage_v: (self.voltage_at)(&st.supply, place, st.sag_a()),
         };
         let mut extra = Vec3::zeros();
         for part in st.parts.iter_mut() {
@@ -926,6 +1014,58 @@ mod tests {
             }
         }
         assert!(within > 0, "no row within the dead zone");
+    }
+
+    /// Behind [`SupplyLags`], a supply's sag follows the motors' current through the lag: after
+    /// a step of the commands, a bench's source resistance takes the exponential's share of
+    /// its settled sag (the current itself moves little with a sag of a few tenths of a volt),
+    /// where without the lag the whole sag is there at the first row.
+    #[test]
+    fn a_supply_behind_a_lag_sags_with_the_lagged_current() {
+        let toml = format!(
+            "{STAIR}\n[supply]\nkind = \"bench\"\nvoltage_v = 12.0\nsource_resistance_ohm = 0.01\n[motors]\nspinup_tau_s = 0.001\n"
+        );
+        let s = Scenario::from_toml_str(&toml, "t")
+            .unwrap()
+            .check("t", None)
+            .unwrap();
+        // 50 Hz, the commands off for a second, then held at 0.8 for four.
+        let t_s: Vec<f64> = (0..250).map(|r| r as f64 * 0.02).collect();
+        let thr: Vec<Vec<f64>> = vec![
+            t_s.iter()
+                .map(|&t| if t < 1.0 { 0.0 } else { 0.8 })
+                .collect(),
+        ];
+        let step = thr[0].iter().position(|&c| c > 0.0).unwrap();
+        let tau_s = 0.5;
+        let replayed =
+            |lags| replay_behind_lags(s.params(), &t_s, &thr, Logged::default(), 0.0, lags);
+        let (plain, lagged) = (
+            replayed(SupplyLags::NONE),
+            replayed(SupplyLags([tau_s, 0.0])),
+        );
+        let sag = |tr: &Trace, r: usize| tr.voltage_v[step - 1] - tr.voltage_v[r];
+        let last = t_s.len() - 1;
+        assert!(
+            sag(&plain, last) > 0.1,
+            "settled sag {} V at 0.01 ohm",
+            sag(&plain, last)
+        );
+        assert!(
+            sag(&plain, step + 1) > 0.95 * sag(&plain, last),
+            "without a lag: sag {} V a row after the step, {} V settled",
+            sag(&plain, step + 1),
+            sag(&plain, last)
+        );
+        for r in step + 1..step + 100 {
+            let expected = 1.0 - (-(t_s[r] - t_s[step]) / tau_s).exp();
+            let share = sag(&lagged, r) / sag(&lagged, last);
+            assert!(
+                (share - expected).abs() < 0.02,
+                "row {r}, {:.2} s after the step: sag {share:.4} of the settled one, a {tau_s} s lag gives {expected:.4}",
+                t_s[r] - t_s[step]
+            );
+        }
     }
 
     /// Where nothing couples the motors within an interval (a bench whose voltage does not

@@ -309,6 +309,11 @@ impl Effect for BatterySag {
     fn uses_recorded_voltage(&self, ctx: &Context) -> bool {
         ctx.rec.bat_v.is_some()
     }
+    fn changes_the_currents(&self, ctx: &Context) -> bool {
+        // On a stand its columns are the current law's times the supply's change; a flight's
+        // logged current already holds the voltage's effect and any lag.
+        !ctx.follow_recorded_current
+    }
     fn regressors(
         &self,
         ctx: &Context,
@@ -354,8 +359,8 @@ impl Effect for BatterySag {
                     .collect(),
             )];
         }
-        // The baseline's own current-law columns, as this model has them (lagged with the
-        // currents' field where a term lags it).
+        // The baseline's own current-law columns, before any lag of the currents' field (the
+        // design lags these columns with it: `changes_the_currents`).
         let change: Vec<f64> = change.collect();
         let change = &change;
         // To second order: each column times the change, and times its square.

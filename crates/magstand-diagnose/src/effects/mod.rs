@@ -287,9 +287,21 @@ pub trait Effect: Sync + Send {
         None
     }
 
+    /// Whether this effect's columns change the motor currents themselves (the current law's
+    /// columns times a supply's voltage change): where a term lags the currents' field, they
+    /// are built from the law before that lag and lagged with it, as the currents are (a
+    /// current that follows its command and its voltage through a lag follows their product,
+    /// not the voltage times the lagged current). False (the default) for columns that a lag
+    /// of the currents does not delay (a temperature, a measured current).
+    fn changes_the_currents(&self, _ctx: &Context) -> bool {
+        false
+    }
+
     /// Regressor columns the effect adds (each gets one coefficient per axis), with names.
     /// `law` is the baseline's current law as this model has it, each column by name (built
-    /// from `trace`, and lagged where a term lags the currents' field).
+    /// from `trace`, and lagged where a term lags the currents' field, except for an effect
+    /// that [changes the currents](Effect::changes_the_currents), whose columns are lagged
+    /// after).
     fn regressors(
         &self,
         _ctx: &Context,

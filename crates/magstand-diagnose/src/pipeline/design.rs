@@ -5,7 +5,7 @@ use std::sync::{Arc, Mutex};
 
 use magstand_core::Vec3;
 use magstand_sim::Scenario;
-use magstand_sim::replay::{Logged, Trace, replay_logged};
+use magstand_sim::replay::{Logged, SupplyLags, Trace, replay_behind_lags};
 
 use crate::DiagnoseError;
 use crate::effects::{Context, Effect, SeriesLag};
@@ -120,6 +120,7 @@ struct ReplayKey {
     lead_bits: u64,
     recorded_voltage: bool,
     recorded_current: bool,
+    supply_lags: SupplyLags,
 }
 
 /// Most replays a cache keeps.
@@ -143,6 +144,7 @@ impl ReplayCache {
         scenario: &Scenario,
         lead: f64,
         logged: Logged,
+        supply_lags: SupplyLags,
         make: impl FnOnce() -> Trace,
     ) -> Arc<Trace> {
         let (lead_bits, recorded_voltage, recorded_current) = (
@@ -157,14 +159,18 @@ impl ReplayCache {
                  lead_bits: l,
                  recorded_voltage: v,
                  recorded_current: c,
+                 supply_lags: g,
              }| {
-                (*l, *v, *c) == (lead_bits, recorded_voltage, recorded_current) && s == scenario
+                (*l, *v, *c) == (lead_bits, recorded_voltage, recorded_current)
+                    && g.0.map(f64::to_bits) == supply_lags.0.map(f64::to_bits)
+                    && s == scenario
             },
             || ReplayKey {
                 scenario: scenario.clone(),
                 lead_bits,
                 recorded_voltage,
                 recorded_current,
+                supply_lags,
             },
             make,
             |trace| (REPLAY_CACHE_BYTES / trace_bytes(trace).max(1)).clamp(1, REPLAYS_KEPT),
@@ -204,8 +210,13 @@ pub(crate) fn build_with_lead(ctx: &Context, terms: &[(&dyn Effect, &[f64])], le
     // ramp misses half the step at the row the delay puts within its interval).
     // The replay takes the lead within 0..1: a curvature step past an end is the end's replay.
     let lead = lead.clamp(0.0, 1.0);
-    let trace: &Trace = &ctx.replays.get_or_make(&s, lead, logged, || {
-        replay_logged(&s, &ctx.rec.t_s, &ctx.rec.thr, logged, lead)
+    // Behind such a lag the current itself lags: a battery's sag follows the lagged current.
+    let supply_lags = SupplyLags(match field_lags.iter().flatten().next() {
+        Some(&tau_s) => [tau_s, spinup_behind_s],
+        None => [0.0; 2],
+    });
+    let trace: &Trace = &ctx.replays.get_or_make(&s, lead, logged, supply_lags, || {
+        replay_behind_lags(&s, &ctx.rec.t_s, &ctx.rec.thr, logged, lead, supply_lags)
     });
     let mut design = Design::baseline(
         trace,
@@ -230,18 +241,44 @@ pub(crate) fn build_with_lead(ctx: &Context, terms: &[(&dyn Effect, &[f64])], le
             })
         })
         .collect();
+    // The law before the lag, for the terms that change the currents: their columns are
+    // lagged after they are formed, as the currents they change are.
+    let lags_the_field = kernels.iter().any(Option::is_some);
+    let unlagged_law: Vec<(String, Vec<f64>)> =
+        if lags_the_field && terms.iter().any(|(e, _)| e.changes_the_currents(ctx)) {
+            design
+                .current_law_columns()
+                .map(|(name, c)| (name.to_string(), c.to_vec()))
+                .collect()
+        } else {
+            Vec::new()
+        };
     for lag in kernels.iter().flatten() {
         lag_current_field(&mut design, &mut fixed, lag);
     }
     // Every term's columns, from the baseline's current law as built; a term that lags the
     // currents' field also takes the second order of a field nonlinear in the current.
     let law: Vec<(&str, &[f64])> = design.current_law_columns().collect();
+    let law_before_lag: Vec<(&str, &[f64])> = unlagged_law
+        .iter()
+        .map(|(name, c)| (name.as_str(), c.as_slice()))
+        .collect();
     let avionics_a = s.supply.avionics_current_a();
     let added: Vec<Vec<(String, Vec<f64>)>> = terms
         .iter()
         .zip(&kernels)
         .map(|((e, theta), field_lag)| {
-            let mut columns = e.regressors(ctx, trace, &law, theta);
+            let mut columns = if lags_the_field && e.changes_the_currents(ctx) {
+                let mut columns = e.regressors(ctx, trace, &law_before_lag, theta);
+                let mut lagged: Vec<&mut [f64]> =
+                    columns.iter_mut().map(|(_, c)| c.as_mut_slice()).collect();
+                for lag in kernels.iter().flatten() {
+                    lag.apply(&mut lagged);
+                }
+                columns
+            } else {
+                e.regressors(ctx, trace, &law, theta)
+            };
             if let Some(lag) = field_lag {
                 columns.push((
                     "lagged_current_squared_a2".into(),
