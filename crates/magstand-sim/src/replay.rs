@@ -211,8 +211,15 @@ fn fixed_supply_voltage(p: &Scenario) -> bool {
 /// module adds a field. Such a replay steps each motor on its own, in one step per part of
 /// an interval; any other steps them together in substeps.
 pub fn motors_uncoupled(scenario: &Scenario, logged: Logged) -> bool {
-    (logged.bat_v.is_some() || fixed_supply_voltage(scenario))
+    !voltage_follows_load(scenario, logged)
         && !scenario.module_params().iter().any(|m| m.adds_field())
+}
+
+/// Whether the supply voltage the motors of `scenario` see when replayed with `logged` moves
+/// with their current: the supply model's (no `bat_v` followed) where it has a resistance.
+/// Only then do [`SupplyLags`] change a replay.
+pub fn voltage_follows_load(scenario: &Scenario, logged: Logged) -> bool {
+    logged.bat_v.is_none() && !fixed_supply_voltage(scenario)
 }
 
 /// [`replay`] following the recorded supply columns in `logged`.

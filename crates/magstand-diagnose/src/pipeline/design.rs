@@ -5,7 +5,7 @@ use std::sync::{Arc, Mutex};
 
 use magstand_core::Vec3;
 use magstand_sim::Scenario;
-use magstand_sim::replay::{Logged, SupplyLags, Trace, replay_behind_lags};
+use magstand_sim::replay::{Logged, SupplyLags, Trace, replay_behind_lags, voltage_follows_load};
 
 use crate::DiagnoseError;
 use crate::effects::{Context, Effect, SeriesLag};
@@ -211,10 +211,12 @@ pub(crate) fn build_with_lead(ctx: &Context, terms: &[(&dyn Effect, &[f64])], le
     // The replay takes the lead within 0..1: a curvature step past an end is the end's replay.
     let lead = lead.clamp(0.0, 1.0);
     // Behind such a lag the current itself lags: a battery's sag follows the lagged current.
-    let supply_lags = SupplyLags(match field_lags.iter().flatten().next() {
-        Some(&tau_s) => [tau_s, spinup_behind_s],
-        None => [0.0; 2],
-    });
+    // (Only a voltage that moves with the load sees it: elsewhere the replay is the same for
+    // every lag, and kept for all of them.)
+    let supply_lags = match field_lags.iter().flatten().next() {
+        Some(&tau_s) if voltage_follows_load(&s, logged) => SupplyLags([tau_s, spinup_behind_s]),
+        _ => SupplyLags::NONE,
+    };
     let trace: &Trace = &ctx.replays.get_or_make(&s, lead, logged, supply_lags, || {
         replay_behind_lags(&s, &ctx.rec.t_s, &ctx.rec.thr, logged, lead, supply_lags)
     });
