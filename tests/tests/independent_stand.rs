@@ -64,6 +64,14 @@ fn diagnosed_at(
     magstand_tests::independent::run_case_on(&stand, &suite_case(label), mode, 1)
 }
 
+/// Asserts that `o`'s verdict names exactly `expected` (sorted, in any order), printing
+/// `what` and the diagnosis where it does not.
+fn assert_named_exactly(o: &magstand_tests::independent::Outcome, expected: &[&str], what: &str) {
+    let mut verdict = o.verdict.clone();
+    verdict.sort();
+    assert_eq!(verdict, expected, "{what}\n{}", o.diagnosis.summary());
+}
+
 /// Whether a candidate `name` of some round was refused with a note that `says` accepts.
 fn refused_with(d: &magstand_diagnose::Diagnosis, name: &str, says: impl Fn(&str) -> bool) -> bool {
     d.rounds
@@ -840,14 +848,7 @@ fn calibration_rounds_come_first_and_leave_findings_to_the_catalog() {
         Mode::Unstated,
         1,
     );
-    let mut verdict = o.verdict.clone();
-    verdict.sort();
-    assert_eq!(
-        verdict,
-        ["thermal_drift", "time_offset"],
-        "{}",
-        o.diagnosis.summary()
-    );
+    assert_named_exactly(&o, &["thermal_drift", "time_offset"], "");
     let names = |r: &magstand_diagnose::diagnosis::Round| -> Vec<String> {
         r.candidates.iter().map(|c| c.name.clone()).collect()
     };
@@ -1025,14 +1026,7 @@ fn a_slow_lag_beside_a_late_magnetometer_is_named_with_both_times() {
     for mode in [Mode::Unstated, Mode::Stated] {
         let o = run_case(&suite_case("current lag + time offset"), mode, 1);
         let d = &o.diagnosis;
-        let mut verdict = o.verdict.clone();
-        verdict.sort();
-        assert_eq!(
-            verdict,
-            ["current_lag", "time_offset"],
-            "{mode:?}\n{}",
-            d.summary()
-        );
+        assert_named_exactly(&o, &["current_lag", "time_offset"], &format!("{mode:?}"));
         let tau = named_param(d, "current_lag", "spinup_tau_s").expect("the lag");
         assert!(
             (tau.value - 0.5).abs() < 0.02,
@@ -1071,14 +1065,7 @@ fn a_slow_lag_beside_a_late_magnetometer_at_100_hz_is_named_with_both_times() {
         Mode::Stated,
         1,
     );
-    let mut verdict = o.verdict.clone();
-    verdict.sort();
-    assert_eq!(
-        verdict,
-        ["current_lag", "time_offset"],
-        "{}",
-        o.diagnosis.summary()
-    );
+    assert_named_exactly(&o, &["current_lag", "time_offset"], "");
 }
 
 /// Regression: a battery beside a 0.5 s current lag on the generator's default stand, `bat_v`
@@ -1092,13 +1079,10 @@ fn a_battery_beside_a_slow_lag_is_named_with_the_lag() {
     use magstand_tests::independent::{Mode, run_case};
     for (mode, seed) in [(Mode::Unstated, 2), (Mode::Stated, 1)] {
         let o = run_case(&suite_case("battery sag + current lag"), mode, seed);
-        let mut verdict = o.verdict.clone();
-        verdict.sort();
-        assert_eq!(
-            verdict,
-            ["battery_sag", "current_lag"],
-            "{mode:?}, seed {seed}\n{}",
-            o.diagnosis.summary()
+        assert_named_exactly(
+            &o,
+            &["battery_sag", "current_lag"],
+            &format!("{mode:?}, seed {seed}"),
         );
         let tau = named_param(&o.diagnosis, "current_lag", "spinup_tau_s").expect("the lag");
         assert!(
@@ -1122,12 +1106,5 @@ fn a_battery_without_bat_v_beside_a_slow_lag_sags_with_the_lagged_current() {
         Mode::Unstated,
         2,
     );
-    let mut verdict = o.verdict.clone();
-    verdict.sort();
-    assert_eq!(
-        verdict,
-        ["battery_sag", "current_lag"],
-        "{}",
-        o.diagnosis.summary()
-    );
+    assert_named_exactly(&o, &["battery_sag", "current_lag"], "");
 }
