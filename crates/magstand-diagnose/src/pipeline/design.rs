@@ -635,7 +635,7 @@ mod tests {
         let step_s = 30.5;
         let bat_v: Vec<f64> = t_s
             .iter()
-            .map(|&t| if t < step_s { 12.6 } else { 11.4 })
+            .map(|&t| if t < step_s { 12.6 } else { 11.0 })
             .collect();
         let rows = t_s.len();
         let stand = crate::effects::TestStand::new(Recording {
@@ -669,17 +669,26 @@ mod tests {
         );
         let at_step = t_s.iter().position(|&t| t >= step_s).unwrap();
         let settled = t_s.iter().position(|&t| t >= step_s + 8.0 * tau_s).unwrap();
-        let (before, after) = (change(at_step - 1), change(at_step));
-        let mut moved = false;
-        for ((name, law), k) in law.iter().zip(battery_columns.clone()) {
-            assert_eq!(lagged.design.names[k], format!("voltage_change_x_{name}"));
+        // The powers of the change whose columns carry the step.
+        let mut moved = [false; 2];
+        // The voltage's change, then its square, times each law column, in that order.
+        let forms = [("voltage_change", 1), ("voltage_change_squared", 2)]
+            .into_iter()
+            .flat_map(|(prefix, power)| {
+                law.iter()
+                    .map(move |(name, law)| (prefix, power, name, law))
+            });
+        for ((prefix, power, name, law), k) in forms.zip(battery_columns.clone()) {
+            let name = format!("{prefix}_x_{name}");
+            assert_eq!(lagged.design.names[k], name);
             let column = &lagged.design.columns[k];
+            let (before, after) = (change(at_step - 1).powi(power), change(at_step).powi(power));
             // What the voltage's step moves the column by, once through the lag.
             let full = law.iter().fold(0.0_f64, |m, v| m.max(v.abs())) * (after - before).abs();
             if full < 1e-9 {
                 continue;
             }
-            moved = true;
+            moved[power as usize - 1] = true;
             for r in 0..at_step {
                 assert!(
                     (column[r] - law[r] * before).abs() <= 1e-9 * full,
@@ -708,7 +717,10 @@ mod tests {
                 );
             }
         }
-        assert!(moved, "no law column carries the voltage's step");
+        assert_eq!(
+            moved, [true; 2],
+            "law columns carrying the voltage's step, by the change's power"
+        );
         // Without the lag the battery's first column differs.
         assert_ne!(
             plain.design.columns[plain.term_columns[0].start],
