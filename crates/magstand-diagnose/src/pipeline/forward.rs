@@ -203,20 +203,12 @@ fn try_candidate_from(
 /// again fits the same forms from the same starts: each fit is kept until the model changes
 /// (each of its searches a replay per point, a coupled one for a battery without `bat_v`).
 #[derive(Default)]
-struct RicherFits(Vec<(Vec<u64>, Candidate)>);
+struct RicherFits(Vec<(RicherKey, Candidate)>);
+
+/// A richer form (its effect's name and variant) and the bits of the start it was fitted from.
+type RicherKey = (&'static str, Option<&'static str>, Vec<u64>);
 
 impl RicherFits {
-    /// The key of `form` fitted from `from`: its name, its variant and the start's bits.
-    fn key(form: &dyn Effect, from: Option<&[f64]>) -> Vec<u64> {
-        fn name(s: &str) -> impl Iterator<Item = u64> + '_ {
-            s.bytes().map(u64::from).chain([u64::MAX])
-        }
-        name(form.name())
-            .chain(name(form.variant().unwrap_or("")))
-            .chain(from.into_iter().flatten().map(|v| v.to_bits()))
-            .collect()
-    }
-
     /// `form` fitted from `from` beside the model as it stands: kept, or made by `fit` and
     /// kept. The note is the caller's to give.
     fn get_or_fit(
@@ -225,7 +217,11 @@ impl RicherFits {
         from: Option<&[f64]>,
         fit: impl FnOnce() -> Candidate,
     ) -> Candidate {
-        let key = Self::key(form, from);
+        let key: RicherKey = (
+            form.name(),
+            form.variant(),
+            from.into_iter().flatten().map(|v| v.to_bits()).collect(),
+        );
         let mut c = match self.0.iter().find(|(k, _)| *k == key) {
             Some((_, c)) => c.clone(),
             None => {
