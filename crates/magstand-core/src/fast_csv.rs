@@ -18,8 +18,9 @@ const CHUNKS_PER_THREAD: usize = 4;
 
 /// The recording in `bytes`, or `None` when the general reader must read it.
 pub(crate) fn read(bytes: &[u8], path: &Path) -> Option<Recording> {
-    let text = std::str::from_utf8(bytes).ok()?;
-    let (header, body) = text.split_once('\n')?;
+    let newline = memchr::memchr(b'\n', bytes)?;
+    let header = std::str::from_utf8(&bytes[..newline]).ok()?;
+    let body = &bytes[newline + 1..];
     if header.contains('"') {
         return None;
     }
@@ -36,16 +37,16 @@ pub(crate) fn read(bytes: &[u8], path: &Path) -> Option<Recording> {
     let chunks = split_lines(body, rayon::current_num_threads() * CHUNKS_PER_THREAD);
     // Every line of a chunk is a row (a blank line sends the file to the general reader), so
     // each chunk's rows have their place in the columns before any is parsed.
-    // The same pass finds any quote, which only the general reader takes.
+    // The same pass finds any quote, which only the general reader takes, and checks that the
+    // text is UTF-8 (a newline byte is never inside a character, so chunk by chunk suffices).
     let counts: Vec<usize> = chunks
         .par_iter()
-        .map(|c| {
-            let (mut lines, mut quotes) = (0, 0);
-            for &b in c.as_bytes() {
-                lines += usize::from(b == b'\n');
-                quotes += usize::from(b == b'"');
-            }
-            (quotes == 0).then_some(lines + usize::from(!c.ends_with('\n')))
+        .map(|&c| {
+            std::str::from_utf8(c).ok()?;
+            let lines = memchr::memchr_iter(b'\n', c).count();
+            memchr::memchr(b'"', c)
+                .is_none()
+                .then_some(lines + usize::from(!c.ends_with(b"\n")))
         })
         .collect::<Option<Vec<_>>>()?;
     let rows: usize = counts.iter().sum();
@@ -75,7 +76,7 @@ pub(crate) fn read(bytes: &[u8], path: &Path) -> Option<Recording> {
 }
 
 /// `body` cut into about `parts` pieces, each ending at a line end.
-fn split_lines(body: &str, parts: usize) -> Vec<&str> {
+fn split_lines(body: &[u8], parts: usize) -> Vec<&[u8]> {
     let mut out = Vec::with_capacity(parts);
     let mut rest = body;
     let size = body.len() / parts.max(1) + 1;
@@ -84,7 +85,7 @@ fn split_lines(body: &str, parts: usize) -> Vec<&str> {
         let cut = if rest.len() <= size {
             rest.len()
         } else {
-            match rest.as_bytes()[size..].iter().position(|&b| b == b'\n') {
+            match memchr::memchr(b'\n', &rest[size..]) {
                 Some(k) => size + k + 1,
                 None => rest.len(),
             }
@@ -100,13 +101,12 @@ fn split_lines(body: &str, parts: usize) -> Vec<&str> {
 /// chunk's lines) and returns the text columns; `None` on a line the general reader must
 /// judge.
 fn parse_chunk(
-    chunk: &str,
+    bytes: &[u8],
     numeric: &[bool],
     limits: &[f64],
     place: &mut [&mut [f64]],
 ) -> Option<Vec<Vec<String>>> {
     let n = numeric.len();
-    let bytes = chunk.as_bytes();
     let mut texts: Vec<Vec<String>> = vec![Vec::new(); n];
     let mut row = 0;
     let mut pos = 0;
@@ -169,34 +169,49 @@ fn trim_cr(cell: &[u8], last: bool) -> &[u8] {
 /// The plain decimal number at `pos` (`-12.345`, nothing around it) and where its cell ends
 /// (at the comma, the newline or the `\r` before it, or the end), when it is exactly
 /// representable as Clinger's fast path needs; `None` for any other cell.
-fn plain_number(bytes: &[u8], mut pos: usize) -> Option<(f64, usize)> {
+#[inline(always)]
+fn plain_number(bytes: &[u8], pos: usize) -> Option<(f64, usize)> {
     let negative = bytes.get(pos) == Some(&b'-');
-    pos += usize::from(negative);
-    let mut mantissa: u64 = 0;
-    let (mut count, mut decimals, mut dot) = (0usize, 0usize, false);
-    while let Some(&b) = bytes.get(pos) {
-        match b {
-            b'0'..=b'9' if count < 19 => {
-                mantissa = mantissa * 10 + u64::from(b - b'0');
-                count += 1;
-                decimals += usize::from(dot);
-            }
-            b'.' if !dot => dot = true,
-            b',' | b'\n' => break,
-            b'\r' if matches!(bytes.get(pos + 1), None | Some(b'\n')) => {
-                // `\r\n`: the cell ends here; the caller steps over the `\r`.
-                pos += 1;
-                break;
-            }
-            _ => return None,
-        }
-        pos += 1;
+    let start = pos + usize::from(negative);
+    // The digits are most of a recording's bytes: read eight at a time (`digit_run`).
+    let (mut mantissa, whole) = digit_run(bytes, start, 0);
+    let mut end = start + whole;
+    let mut decimals = 0;
+    if bytes.get(end) == Some(&b'.') {
+        (mantissa, decimals) = digit_run(bytes, end + 1, mantissa);
+        end += 1 + decimals;
     }
-    if count == 0 || mantissa > 1 << 53 || decimals >= EXACT_POWERS_OF_TEN.len() {
+    match bytes.get(end) {
+        None | Some(b',' | b'\n') => {}
+        // `\r\n`: the cell ends here; the caller steps over the `\r`.
+        Some(b'\r') if matches!(bytes.get(end + 1), None | Some(b'\n')) => end += 1,
+        Some(_) => return None,
+    }
+    // More than 19 digits may have wrapped the mantissa; those go to the standard parser.
+    let count = whole + decimals;
+    if count == 0 || count > 19 || mantissa > 1 << 53 || decimals >= EXACT_POWERS_OF_TEN.len() {
         return None;
     }
     let v = mantissa as f64 / EXACT_POWERS_OF_TEN[decimals];
-    Some((if negative { -v } else { v }, pos))
+    Some((if negative { -v } else { v }, end))
+}
+
+/// The run of decimal digits at `pos` appended to `value` (wrapping past 19 digits, which the
+/// caller refuses), and its length. A digit at a time: a recording's runs are short and of the
+/// same length row after row, so the loop's branch is predicted, and it was faster than reading
+/// eight bytes at once with integer arithmetic (115 against 145 ms on the bench's file).
+#[inline(always)]
+fn digit_run(bytes: &[u8], mut pos: usize, mut value: u64) -> (u64, usize) {
+    let start = pos;
+    while let Some(&b) = bytes.get(pos) {
+        let d = b.wrapping_sub(b'0');
+        if d > 9 {
+            break;
+        }
+        value = value.wrapping_mul(10).wrapping_add(u64::from(d));
+        pos += 1;
+    }
+    (value, pos - start)
 }
 
 /// Powers of ten that are exact in an f64.
@@ -361,6 +376,18 @@ mod tests {
             "1,5",
             "0x10",
             "123456.789012",
+            // Runs of digits about the 19-digit limit (where the mantissa could wrap), the
+            // bytes beside the digits' range, and a character of several bytes.
+            "-.5",
+            "1234567890123456789",
+            "12345678901234567890",
+            "1.234567890123456789",
+            "0000000000000000000001.5",
+            "0.00000000000000000000000001",
+            "5/",
+            "5:",
+            "5é",
+            "é5",
         ]
         .iter()
         .map(|s| s.to_string())
@@ -417,9 +444,13 @@ mod tests {
     fn chunks_end_at_line_ends_whatever_the_characters() {
         let body = "0.0,ü€,x\n".repeat(1000);
         for parts in [1, 2, 3, 7, 64] {
-            let chunks = split_lines(&body, parts);
-            assert_eq!(chunks.concat(), body, "{parts} parts");
-            assert!(chunks.iter().all(|c| c.ends_with('\n')), "{parts} parts");
+            let chunks = split_lines(body.as_bytes(), parts);
+            assert_eq!(chunks.concat(), body.as_bytes(), "{parts} parts");
+            assert!(chunks.iter().all(|c| c.ends_with(b"\n")), "{parts} parts");
+            assert!(
+                chunks.iter().all(|c| std::str::from_utf8(c).is_ok()),
+                "{parts} parts: a chunk cut inside a character"
+            );
         }
     }
 }
