@@ -17,7 +17,7 @@ use super::gain::{
     block_improvements, block_improvements_on, gain_p_value, holdout_rmse, mean_gain, standardized,
     whiteness,
 };
-use super::refine::{lag_refitted, refine, slow_lag_beside_delay};
+use super::refine::{along_the_valley, lag_refitted, refine, slow_lag_beside_delay};
 
 /// The calibrated baseline the search starts from.
 pub(crate) struct BaselineFit {
@@ -143,7 +143,7 @@ fn try_candidate_from(
             ctx,
             &refs,
             l,
-            &terms[l].theta,
+            &along_the_valley(&terms[l].theta, &[], theta),
             ctx.command_lead,
             weights,
             Precision::Value,

@@ -4,8 +4,8 @@
 use crate::effects::Context;
 use crate::fit::Weights;
 use crate::optimize::{
-    Precision, Search, minimize, minimize_near, minimize_near_or_beyond, minimize_near_to,
-    minimize_to, newton_step,
+    Precision, Search, minimize, minimize_near, minimize_near_by_parabolas,
+    minimize_near_or_beyond, minimize_near_to, minimize_to, newton_step,
 };
 
 use super::design::{Term, as_refs, chi2_of};
@@ -163,10 +163,12 @@ fn delay_behind_slow_lag(ctx: &mut Context, terms: &mut [Term], weights: &Weight
     let held: &[Term] = terms;
     // The lag's best near where it is, at `delay`: its chi-square and parameters (with its
     // uncertainty only where `precision` is fine: the profile uses the value alone).
+    let delay_from = terms[d].theta.clone();
     let lag_at = |delay: &[f64], precision: Precision| {
         let mut refs = as_refs(held);
         refs[d].1 = delay;
-        lag_refitted(shared, &refs, l, &lag_from, lead, weights, precision)
+        let from = along_the_valley(&lag_from, &delay_from, delay);
+        lag_refitted(shared, &refs, l, &from, lead, weights, precision)
     };
     let profile = |delay: &[f64]| lag_at(delay, Precision::Value).map(|o| o.value);
     let Some(now) = chi2_of(ctx, &as_refs(terms), lead, weights) else {
@@ -187,6 +189,21 @@ fn delay_behind_slow_lag(ctx: &mut Context, terms: &mut [Term], weights: &Weight
     ctx.command_lead = calibrate_timing_from(ctx, terms, weights, Some(lead));
 }
 
+/// Where a slow lag's search starts at a delay `delay` when it stood at `lag_from` beside a
+/// delay `delay_from` (none: the delay is the candidate): the lag's time constant minus the
+/// delay's change, so that their sum stays. A first-order lag behind a pure delay moves a
+/// step's response by their sum on average, which the data fix well; the two trade along
+/// that line (the chi-square's valley), and a lag calibrated alone takes the delay into its
+/// time constant. Started where it was at every delay, the lag's search from 0.83 s (a
+/// 0.5 s lag calibrated beside a 0.3 s late magnetometer) needed its whole bracket at the
+/// delays near 0.3 s.
+pub(crate) fn along_the_valley(lag_from: &[f64], delay_from: &[f64], delay: &[f64]) -> Vec<f64> {
+    match (lag_from, delay_from.first().copied().unwrap_or(0.0), delay) {
+        ([tau], was, [now]) if tau + was - now > 0.0 => vec![tau + was - now],
+        _ => lag_from.to_vec(),
+    }
+}
+
 /// The best fit of `terms` with the parameters of term `l` (a slow lag) searched near `from`,
 /// the others held, at `lead`, to `precision`: what the delay's profile beside the lag
 /// minimizes, in the candidate's fit ([`slow_lag_beside_delay`]) and in the refinement
@@ -201,11 +218,16 @@ pub(crate) fn lag_refitted(
     precision: Precision,
 ) -> Option<crate::optimize::Optimum> {
     let lags = terms[l].0.search(ctx);
-    minimize_near_to(&lags, Some(from), precision, |lag: &[f64]| {
+    let chi2 = |lag: &[f64]| {
         let mut refs = terms.to_vec();
         refs[l].1 = lag;
         chi2_of(ctx, &refs, lead, weights)
-    })
+    };
+    if precision == Precision::Value {
+        minimize_near_by_parabolas(&lags, from, chi2)
+    } else {
+        minimize_near_to(&lags, Some(from), precision, chi2)
+    }
 }
 
 /// Most Newton steps [`valley_steps`] takes.
@@ -403,6 +425,20 @@ mod tests {
     use super::*;
     use crate::effects::TestStand;
     use std::cell::Cell;
+
+    #[test]
+    fn a_lag_starts_where_its_sum_with_the_delay_stays() {
+        // A 0.83 s lag calibrated alone (no delay) starts at 0.53 s beside a 0.3 s delay, and
+        // at 0.83 s beside none; beside 0.1 s it moves by the change in the delay.
+        let at = |lag: f64, was: &[f64], now: f64| along_the_valley(&[lag], was, &[now])[0];
+        assert!((at(0.83, &[], 0.3) - 0.53).abs() < 1e-12);
+        assert!((at(0.83, &[], 0.0) - 0.83).abs() < 1e-12);
+        assert!((at(0.5, &[0.3], 0.1) - 0.7).abs() < 1e-12);
+        // Where the delay would take all of the lag, the lag starts where it stood; a lag of
+        // several parameters is not moved.
+        assert_eq!(along_the_valley(&[0.2], &[], &[0.3]), vec![0.2]);
+        assert_eq!(along_the_valley(&[0.5, 1.0], &[], &[0.3]), vec![0.5, 1.0]);
+    }
 
     /// The refinement asks after each search of the newest term whether it is at an edge, and
     /// stops at the first yes: the searches after it would be replays spent on a term that is
