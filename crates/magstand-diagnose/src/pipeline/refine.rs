@@ -79,16 +79,8 @@ pub(crate) fn refine(
             if pass == 0 && one_basin {
                 continue;
             }
-            // The newest term with one basin, in the first pass, near where its candidate's
-            // fit found it (the whole range again where that runs to the end of its bracket):
-            // only older terms with a basin per interval have moved since, by a coarse search
-            // each, and the whole range would be a grid of replays along each parameter
-            // (a battery without `bat_v`: two parameters, each point a coupled replay).
-            let newest_one_basin = !older && !terms[k].effect.has_a_basin_per_interval();
             let found = if pass == 0 && older {
                 minimize_to(&searches, Precision::Coarse, chi2)
-            } else if pass == 0 && newest_one_basin {
-                minimize_near_or_beyond(&searches, &terms[k].theta, chi2)
             } else if pass == 1 && one_basin {
                 minimize_near_or_beyond(&searches, &terms[k].theta, chi2)
             } else {
@@ -446,46 +438,6 @@ mod tests {
         // several parameters is not moved.
         assert_eq!(along_the_valley(&[0.2], &[], &[0.3]), vec![0.2]);
         assert_eq!(along_the_valley(&[0.5, 1.0], &[], &[0.3]), vec![0.5, 1.0]);
-    }
-
-    /// The newest term with one basin is searched in the first pass near where its
-    /// candidate's fit left it, and over the whole range where that search runs to the end of
-    /// its bracket: started a grid step from its optimum or at the end of its range, the
-    /// heating's time constant ends where a start at the optimum does.
-    #[test]
-    fn a_newest_term_with_one_basin_is_found_from_near_or_far() {
-        let stand = TestStand::drifting_stair(2000);
-        let w = Weights(vec![[1.0; 3]; 2000]);
-        let first_search = |start: Option<f64>| {
-            let mut ctx = stand.context();
-            let mut terms: Vec<Term> = ["dead_zone", "thermal_drift"]
-                .iter()
-                .map(|n| Term::mid_range(&ctx, n))
-                .collect();
-            if let Some(tau) = start {
-                terms[1].theta = vec![tau];
-            }
-            let found = Cell::new(None);
-            refine(&mut ctx, &mut terms, &w, |_, t| {
-                if found.get().is_none() {
-                    found.set(Some(t.theta[0]));
-                }
-                true
-            });
-            found.get().expect("the newest term was searched")
-        };
-        let optimum = first_search(None);
-        let search = &Term::mid_range(&stand.context(), "thermal_drift")
-            .effect
-            .search(&stand.context())[0];
-        let step = (search.hi / search.lo).ln() / (search.points - 1) as f64;
-        for start in [optimum * (0.5 * step).exp(), search.lo, search.hi] {
-            let from_there = first_search(Some(start));
-            assert!(
-                (from_there / optimum).ln().abs() < 0.01 * step,
-                "from {start}: {from_there}, from the middle of the range {optimum}"
-            );
-        }
     }
 
     /// The refinement asks after each search of the newest term whether it is at an edge, and
