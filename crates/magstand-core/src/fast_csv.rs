@@ -173,7 +173,7 @@ fn trim_cr(cell: &[u8], last: bool) -> &[u8] {
 fn plain_number(bytes: &[u8], pos: usize) -> Option<(f64, usize)> {
     let negative = bytes.get(pos) == Some(&b'-');
     let start = pos + usize::from(negative);
-    // The digits are most of a recording's bytes: read eight at a time (`digit_run`).
+    // The digits are most of a recording's bytes: each run in one tight loop (`digit_run`).
     let (mut mantissa, whole) = digit_run(bytes, start, 0);
     let mut end = start + whole;
     let mut decimals = 0;

@@ -434,7 +434,7 @@ const PARABOLA_ITERATIONS: usize = 4;
 /// How far either side [`minimize_near_by_parabolas`] probes, as a fraction of a grid step:
 /// half of [`NEWTON_PROBE_STEPS`], because a parabola's vertex errs by the chi-square's third
 /// derivative times the probes' distance squared.
-const PARABOLA_PROBE_STEPS: f64 = 0.05;
+const PARABOLA_PROBE_STEPS: f64 = NEWTON_PROBE_STEPS / 2.0;
 
 /// The minimum of `f` over one parameter within a grid step of `from`, its value alone (as
 /// [`Precision::Value`]): Newton's steps on parabolas through three points
