@@ -9,7 +9,10 @@
 //!
 //! so current grows with the square of speed, faster than linearly with command, and falls
 //! with the supply voltage. The rotor follows its steady-state speed through a first-order lag
-//! (spin-up), which makes the current, and the field it causes, lag command steps.
+//! (spin-up), which makes the current, and the field it causes, lag command steps. Where the
+//! current itself is slower still (an ESC that ramps its current, a filtered current, a supply
+//! that cannot follow: `current_lag_s`), the current drawn follows the current of the rotor's
+//! speed through a first-order lag of its own.
 use serde::{Deserialize, Serialize};
 
 use crate::error::{Checker, SimError};
@@ -36,6 +39,11 @@ pub struct MotorParams {
     pub thrust_coeff_ns2: f64,
     /// Spin-up time constant, s.
     pub spinup_tau_s: f64,
+    /// Time constant, s, through which the current drawn follows the current of the rotor's
+    /// speed (an ESC that ramps its current, a filtered current, a supply that cannot follow);
+    /// 0 (the default) for none: the current is that of the speed at once.
+    #[serde(skip_serializing_if = "is_zero")]
+    pub current_lag_s: f64,
     /// Rotor imbalance (mass times offset), kg m: a force m r w^2 rotating with the rotor.
     pub imbalance_kg_m: f64,
     /// Per-motor scale on the torque coefficient (unequal propellers); empty means all 1.
@@ -54,10 +62,19 @@ impl Default for MotorParams {
             torque_coeff_nms2: 1.95e-7,
             thrust_coeff_ns2: 1.0e-5,
             spinup_tau_s: 0.06,
+            current_lag_s: 0.0,
             imbalance_kg_m: 2.0e-6,
             load_scale: Vec::new(),
         }
     }
+}
+
+/// The slowest current lag a scenario may state, s: a lag of minutes is not a current's.
+pub const MAX_CURRENT_LAG_S: f64 = 60.0;
+
+/// Whether a value is zero (a setting left at its default is not written out).
+fn is_zero(v: &f64) -> bool {
+    *v == 0.0
 }
 
 /// Most motors a stand may have.
@@ -80,6 +97,12 @@ impl MotorParams {
         c.positive("motors.torque_coeff_nms2", self.torque_coeff_nms2)?;
         c.range("motors.thrust_coeff_ns2", self.thrust_coeff_ns2, 0.0, 1.0)?;
         c.positive("motors.spinup_tau_s", self.spinup_tau_s)?;
+        c.range(
+            "motors.current_lag_s",
+            self.current_lag_s,
+            0.0,
+            MAX_CURRENT_LAG_S,
+        )?;
         c.range("motors.imbalance_kg_m", self.imbalance_kg_m, 0.0, 1.0)?;
         if !self.load_scale.is_empty() && self.load_scale.len() != self.count {
             return Err(c.fail(
@@ -98,6 +121,15 @@ impl MotorParams {
     /// discretization of the spin-up lag, stable for any step.
     pub fn spinup_alpha(&self, dt_s: f64) -> f64 {
         crate::lag::lag_factor(dt_s, self.spinup_tau_s)
+    }
+
+    /// The lag factors of a step of `dt_s`: the rotor's ([`MotorParams::spinup_alpha`]) and
+    /// the current's (1 without a current lag).
+    pub fn step_factors(&self, dt_s: f64) -> StepFactors {
+        StepFactors {
+            spinup: self.spinup_alpha(dt_s),
+            current: crate::lag::lag_factor(dt_s, self.current_lag_s),
+        }
     }
 
     /// Torque constant Kt = Ke, N m per A (and V s per rad).
@@ -245,6 +277,17 @@ pub(crate) fn rotor_sin_cos(angle: f64) -> (f64, f64) {
     (f64::from_bits(sin ^ flip), f64::from_bits(cos ^ flip))
 }
 
+/// The fractions of the way a motor covers in one step: its rotor toward its target speed, and
+/// its current toward the current of that speed (1 without a current lag). Exact
+/// discretizations of the two first-order lags, stable for any step.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StepFactors {
+    /// The spin-up's factor, [`MotorParams::spinup_alpha`].
+    pub spinup: f64,
+    /// The current lag's factor.
+    pub current: f64,
+}
+
 /// State of one motor: rotor speed and rotor angle (for the imbalance force).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct MotorState {
@@ -265,11 +308,11 @@ impl MotorState {
             command,
             voltage_v,
             dt_s,
-            p.spinup_alpha(dt_s),
+            p.step_factors(dt_s),
         );
     }
 
-    /// As [`MotorState::step`], with the motor's constants and the lag factor of the step
+    /// As [`MotorState::step`], with the motor's constants and the lag factors of the step
     /// computed once by the caller (an exponential and a few divisions per motor and step are
     /// a noticeable part of a simulation's cost).
     pub fn step_with(
@@ -279,24 +322,24 @@ impl MotorState {
         command: f64,
         voltage_v: f64,
         dt_s: f64,
-        alpha: f64,
+        factors: StepFactors,
     ) {
-        self.step_electrical_with(p, c, command, voltage_v, alpha);
+        self.step_electrical_with(p, c, command, voltage_v, factors);
         self.angle_rad = wrap_angle(self.angle_rad + self.speed_rad_s * dt_s);
     }
 
     /// Advances speed and current only (not the rotor angle, which only the rigid body
-    /// needs), with the lag factor `alpha` = [`MotorParams::spinup_alpha`] of the step: the
-    /// replay of a recording steps every motor by the same interval.
+    /// needs), with the lag factors [`MotorParams::step_factors`] of the step: the replay of
+    /// a recording steps every motor by the same interval.
     pub fn step_electrical(
         &mut self,
         p: &MotorParams,
         motor: usize,
         command: f64,
         voltage_v: f64,
-        alpha: f64,
+        factors: StepFactors,
     ) {
-        self.step_electrical_with(p, &p.constants(motor), command, voltage_v, alpha);
+        self.step_electrical_with(p, &p.constants(motor), command, voltage_v, factors);
     }
 
     /// As [`MotorState::step_electrical`], with the motor's constants computed once by the
@@ -307,26 +350,40 @@ impl MotorState {
         c: &MotorConstants,
         command: f64,
         voltage_v: f64,
-        alpha: f64,
+        factors: StepFactors,
     ) {
         let duty = p.duty(command);
-        self.step_toward(p, c, c.steady_speed(p, duty, voltage_v), duty > 0.0, alpha);
+        self.step_toward(
+            p,
+            c,
+            c.steady_speed(p, duty, voltage_v),
+            duty > 0.0,
+            factors,
+        );
     }
 
     /// Advances speed and current toward a steady speed `target_rad_s` already worked out for
-    /// the command (`driven` while the ESC drives the motor), with lag factor `alpha`: what
+    /// the command (`driven` while the ESC drives the motor), with lag factors `factors`: what
     /// [`MotorState::step_electrical_with`] does once it has the target, for a caller that
-    /// keeps the target while the command and the voltage hold.
+    /// keeps the target while the command and the voltage hold. A current lag follows the
+    /// current of the speed at the step's end, held over the step.
     pub fn step_toward(
         &mut self,
         p: &MotorParams,
         c: &MotorConstants,
         target_rad_s: f64,
         driven: bool,
-        alpha: f64,
+        factors: StepFactors,
     ) {
-        self.speed_rad_s += (target_rad_s - self.speed_rad_s) * alpha;
-        self.current_a = c.current(p, self.speed_rad_s, driven);
+        self.speed_rad_s += (target_rad_s - self.speed_rad_s) * factors.spinup;
+        let of_speed_a = c.current(p, self.speed_rad_s, driven);
+        // Without a lag, the current of the speed itself (the same bits as before the lag
+        // existed, which `x + (y - x) * 1` is not always).
+        self.current_a = if p.current_lag_s > 0.0 {
+            self.current_a + (of_speed_a - self.current_a) * factors.current
+        } else {
+            of_speed_a
+        };
     }
 }
 
@@ -391,6 +448,38 @@ mod tests {
             assert_eq!(wrap_angle(a).to_bits(), (a % TAU).to_bits(), "angle {a}");
             x = (x * 3.9 * (1.0 - x)).clamp(1e-6, 1.0 - 1e-6);
         }
+    }
+
+    /// A current lag: the current drawn follows the current of the rotor's speed through
+    /// `1 - e^(-t / tau)` after a step (the rotor itself near its speed within a few
+    /// milliseconds); without one, the current is that of the speed at every step.
+    #[test]
+    fn a_lagged_current_follows_the_current_of_the_speed_as_a_first_order_lag() {
+        let p = MotorParams {
+            spinup_tau_s: 0.001,
+            current_lag_s: 0.25,
+            ..MotorParams::default()
+        };
+        let (dt, mut s) = (1e-4, MotorState::default());
+        let steady = p.current(0, p.steady_speed(0, p.duty(0.8), 12.0), true);
+        for k in 1..=10_000 {
+            s.step(&p, 0, 0.8, 12.0, dt);
+            let t = k as f64 * dt;
+            if k % 2500 == 0 {
+                let want = steady * (1.0 - (-t / p.current_lag_s).exp());
+                // The rotor's own millisecond and the step's hold: well under 1 %.
+                assert!(
+                    (s.current_a - want).abs() < 0.005 * steady,
+                    "t = {t} s: {} A, the lag gives {want} A of {steady} A",
+                    s.current_a
+                );
+            }
+        }
+        let mut plain = MotorState::default();
+        plain.step(&MotorParams::default(), 0, 0.8, 12.0, dt);
+        let d = MotorParams::default();
+        let of_speed = d.current(0, plain.speed_rad_s, true);
+        assert_eq!(plain.current_a.to_bits(), of_speed.to_bits());
     }
 
     #[test]

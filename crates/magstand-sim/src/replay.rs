@@ -12,7 +12,7 @@
 use crate::Scenario;
 use crate::battery::SupplyState;
 use crate::lag::LagFactor;
-use crate::motor::{MotorConstants, MotorParams, MotorState};
+use crate::motor::{MotorConstants, MotorParams, MotorState, StepFactors};
 use crate::stand_module::{Electrical, StandModule, field_modules};
 use magstand_core::Vec3;
 use magstand_core::interpolation::{interpolate, locate_increasing};
@@ -209,10 +209,12 @@ fn fixed_supply_voltage(p: &Scenario) -> bool {
 /// Whether nothing couples the motors of `scenario` within an interval when replayed with
 /// `logged`: the voltage is the logged one or does not move with the load, and no stand
 /// module adds a field. Such a replay steps each motor on its own, in one step per part of
-/// an interval; any other steps them together in substeps.
+/// an interval; any other steps them together in substeps. So does a motor whose current
+/// lags the current of its speed (two lags in series have no one-step form here).
 pub fn motors_uncoupled(scenario: &Scenario, logged: Logged) -> bool {
     !voltage_follows_load(scenario, logged)
         && !scenario.module_params().iter().any(|m| m.adds_field())
+        && scenario.motors.current_lag_s == 0.0
 }
 
 /// Whether the supply voltage the motors of `scenario` see when replayed with `logged` moves
@@ -380,13 +382,13 @@ pub fn replay_behind_lags(
         return tr;
     }
     let mut steps = Vec::new();
-    let mut spinup = LagFactor::new(p.motors.spinup_tau_s);
+    let mut spinup = MotorLags::new(&p.motors);
     // A late magnetometer's places are read from a copy of the state at the substep before
     // each, stepped on to it (a command change is a step at its moment, not a ramp between two
     // rows). The state itself is still read at every row, where a play operator is fed the
     // row's current.
     let mut unread = places.iter().flatten().copied().peekable();
-    let mut at_place = LagFactor::new(p.motors.spinup_tau_s);
+    let mut at_place = MotorLags::new(&p.motors);
     let mut state = CoupledState {
         motors: vec![MotorState::default(); n_motors],
         targets: vec![TargetSpeed::NONE; n_motors],
@@ -420,7 +422,8 @@ pub fn replay_behind_lags(
         if r > 0 {
             let dt = t_s[r] - t_s[r - 1];
             let lead_from = dt * (1.0 - command_lead.clamp(0.0, 1.0));
-            let settle_s = SETTLE_TIME_CONSTANTS * p.motors.spinup_tau_s;
+            let settle_s =
+                SETTLE_TIME_CONSTANTS * p.motors.spinup_tau_s.max(p.motors.current_lag_s);
             substeps_into(&mut steps, dt, lead_from, settle_s);
             let last = steps.len() - 1;
             for (i, &(a, b, h)) in steps.iter().enumerate() {
@@ -526,14 +529,14 @@ struct CoupledStepper<'a> {
 
 impl CoupledStepper<'_> {
     /// Steps `st` through `(a, b, h)` of the interval ending at row `r`, whose command switches
-    /// at `lead_from` s; `spinup` keeps the lag factor of the last length.
+    /// at `lead_from` s; `spinup` keeps the lag factors of the last length.
     fn step(
         &self,
         st: &mut CoupledState,
         r: usize,
         (a, b, h): (f64, f64, f64),
         lead_from: f64,
-        spinup: &mut LagFactor,
+        spinup: &mut MotorLags,
     ) {
         let voltage = (self.voltage_at)(&st.supply, (r - 1, 0.0), st.sag_a());
         let parts = split_at_switch(r, a, b, lead_from);
@@ -643,10 +646,43 @@ fn split_at_switch(r: usize, a: f64, b: f64, lead_from: f64) -> Parts {
     ]
 }
 
-/// The lag factor of each part of `parts` (none for a part of no length, which steps no
-/// motor), from `spinup`, which keeps the last one for a length seen again.
-fn lag_factors(parts: &Parts, spinup: &mut LagFactor) -> [f64; 2] {
-    parts.map(|(_, len)| if len > 0.0 { spinup.of(len) } else { 0.0 })
+/// A motor's lags as a coupled replay steps them, each factor kept for the length last asked.
+struct MotorLags {
+    spinup: LagFactor,
+    /// The current's lag, where it has one.
+    current: Option<LagFactor>,
+}
+
+impl MotorLags {
+    fn new(p: &MotorParams) -> Self {
+        MotorLags {
+            spinup: LagFactor::new(p.spinup_tau_s),
+            current: (p.current_lag_s > 0.0).then(|| LagFactor::new(p.current_lag_s)),
+        }
+    }
+
+    /// The factors of a step of `len` s.
+    fn of(&mut self, len: f64) -> StepFactors {
+        StepFactors {
+            spinup: self.spinup.of(len),
+            current: self.current.as_mut().map_or(1.0, |c| c.of(len)),
+        }
+    }
+}
+
+/// The lag factors of each part of `parts` (none for a part of no length, which steps no
+/// motor), from `spinup`, which keeps the last ones for a length seen again.
+fn lag_factors(parts: &Parts, spinup: &mut MotorLags) -> [StepFactors; 2] {
+    parts.map(|(_, len)| {
+        if len > 0.0 {
+            spinup.of(len)
+        } else {
+            StepFactors {
+                spinup: 0.0,
+                current: 0.0,
+            }
+        }
+    })
 }
 
 /// Motor `m`'s command at row `r` of `thr` (one column per motor, or one for all).
@@ -670,7 +706,7 @@ impl<C: Fn(usize) -> f64> Motor<'_, C> {
         target: &mut TargetSpeed,
         acting: &mut usize,
         parts: &Parts,
-        alphas: &[f64; 2],
+        alphas: &[StepFactors; 2],
         voltage_v: f64,
     ) {
         for (&(row, len), &alpha) in parts.iter().zip(alphas) {
@@ -730,12 +766,11 @@ fn replay_uncoupled(
     let full_speed = p.motors.steady_speed(0, 1.0, no_load_v).max(1e-9);
     // Each interval's two parts and their lag factors, shared by the motors (the
     // exponentials are most of a step's cost).
-    let tau_s = p.motors.spinup_tau_s;
     let lead = command_lead.clamp(0.0, 1.0);
-    let intervals: Vec<(Parts, [f64; 2])> = (1..rows)
+    let intervals: Vec<(Parts, [StepFactors; 2])> = (1..rows)
         .into_par_iter()
         .map_init(
-            || LagFactor::new(tau_s),
+            || MotorLags::new(&p.motors),
             |spinup, r| {
                 let dt = t_s[r] - t_s[r - 1];
                 let parts = split_at_switch(r, 0.0, dt, dt * (1.0 - lead));
@@ -747,13 +782,14 @@ fn replay_uncoupled(
     // Where the rows are read at other times (`places`, a row and the fraction of the
     // interval after it): the parts of that interval up to each place, with the command
     // switching where the replay switches it, and their lag factors.
-    let reads: Vec<(usize, Parts, [f64; 2])> = places
+    let reads: Vec<(usize, Parts, [StepFactors; 2])> = places
         .unwrap_or(&[])
         .par_iter()
         .map(|&(k, frac)| {
-            let spinup = &mut LagFactor::new(tau_s);
+            let spinup = &mut MotorLags::new(&p.motors);
             if frac <= 0.0 || k + 1 >= rows {
-                return (k, [(k, 0.0), (k, 0.0)], [0.0; 2]);
+                let none = lag_factors(&[(k, 0.0), (k, 0.0)], spinup);
+                return (k, [(k, 0.0), (k, 0.0)], none);
             }
             let dt = t_s[k + 1] - t_s[k];
             let parts = split_at_switch(k + 1, 0.0, frac * dt, dt * (1.0 - lead));
@@ -952,6 +988,66 @@ mod tests {
             );
             assert!((tr.voltage_v[r] - v[r]).abs() < 0.01, "row {r}");
         }
+    }
+
+    /// A motor current that lags the current of the rotor's speed (`motors.current_lag_s`):
+    /// the simulation and the replay agree on it, and behind a fast spin-up on a fixed
+    /// supply each motor's current is the exact first-order lag of the unlagged replay's.
+    #[test]
+    fn a_current_lag_is_simulated_and_replayed_as_a_first_order_lag_of_the_current() {
+        let with = |extra: &str| {
+            Scenario::from_toml_str(
+                &format!("{STAIR}\n[motors]\nspinup_tau_s = 0.001\n{extra}"),
+                "t",
+            )
+            .unwrap()
+            .check("t", None)
+            .unwrap()
+        };
+        let tau_s = 0.4;
+        // On the default battery: the sag follows the lagged current in both.
+        let lagged = with(&format!("current_lag_s = {tau_s}\n"));
+        assert!(!motors_uncoupled(lagged.params(), Logged::default()));
+        let rec = simulate(&lagged, 3);
+        let tr = replay(lagged.params(), &rec.t_s, &rec.thr, None, 0.0);
+        let a = rec.bat_a.clone().unwrap();
+        for r in 0..rec.len() {
+            assert!(
+                (tr.total_a[r] - a[r]).abs() < 0.02 * a[r].max(1.0),
+                "row {r}: replay {} A, simulation {} A",
+                tr.total_a[r],
+                a[r]
+            );
+        }
+        // On a fixed bench, each command acting over the whole interval up to its row: the
+        // lag of a current held over each interval, `L_r = I_r + (L_(r-1) - I_r) e^(-dt/tau)`.
+        let bench = "[supply]\nkind = \"bench\"\nvoltage_v = 12.0\n";
+        let (off, on) = (
+            with(bench),
+            with(&format!("current_lag_s = {tau_s}\n{bench}")),
+        );
+        let plain = replay(off.params(), &rec.t_s, &rec.thr, None, 1.0);
+        let slow = replay(on.params(), &rec.t_s, &rec.thr, None, 1.0);
+        let top = plain.current_a[0].iter().fold(0.0f64, |m, &v| m.max(v));
+        assert!(top > 5.0, "the stair drives the motor: {top} A");
+        let mut expected = plain.current_a[0][0];
+        let mut moved = 0.0f64;
+        for r in 1..rec.len() {
+            let dt = rec.t_s[r] - rec.t_s[r - 1];
+            let now = plain.current_a[0][r];
+            expected = now + (expected - now) * (-dt / tau_s).exp();
+            moved = moved.max((slow.current_a[0][r] - now).abs());
+            assert!(
+                (slow.current_a[0][r] - expected).abs() < 1e-3 * top,
+                "row {r}: {} A replayed, {expected} A the lag of the unlagged {now} A",
+                slow.current_a[0][r]
+            );
+        }
+        // The lag shows: a step's current takes time to follow.
+        assert!(
+            moved > 0.3 * top,
+            "the lagged current left at most {moved} A behind"
+        );
     }
 
     #[test]

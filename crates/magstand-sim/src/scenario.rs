@@ -693,6 +693,8 @@ mod tests {
             ("magnetometer.odr_hz=0", "magnetometer.odr_hz"),
             ("physics_hz=0", "physics_hz"),
             ("motors.dead_zone=1.2", "motors.dead_zone"),
+            ("motors.current_lag_s=-0.1", "motors.current_lag_s"),
+            ("motors.current_lag_s=nan", "motors.current_lag_s"),
         ];
         for (o, key) in cases {
             let e = check(

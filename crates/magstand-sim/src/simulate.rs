@@ -6,7 +6,7 @@ use rand::{RngExt, SeedableRng};
 use rand_distr::StandardNormal;
 
 use crate::battery::SupplyState;
-use crate::motor::{MotorConstants, MotorState};
+use crate::motor::{MotorConstants, MotorState, StepFactors};
 use crate::program::Program;
 use crate::scenario::{DisturbanceSource, Scenario, ValidScenario};
 use crate::stand::{BodyState, StandHandle, StandWorld};
@@ -160,8 +160,8 @@ struct Run<'a> {
     motor_constants: Vec<MotorConstants>,
     /// The program's piece at the last step.
     program_cursor: usize,
-    /// The motors' lag factor per step.
-    spinup_alpha: f64,
+    /// The motors' lag factors per step.
+    step_factors: StepFactors,
 }
 
 impl<'a> Run<'a> {
@@ -242,7 +242,7 @@ impl<'a> Run<'a> {
             avionics_a,
             total_a: avionics_a,
             interference_on: p.interference.amplitude_ut.iter().any(|a| *a != 0.0),
-            spinup_alpha: p.motors.spinup_alpha(dt),
+            step_factors: p.motors.step_factors(dt),
             program_cursor: 0,
             motor_constants: (0..n_motors).map(|m| p.motors.constants(m)).collect(),
         }
@@ -371,7 +371,7 @@ impl<'a> Run<'a> {
                 self.commands[m],
                 voltage,
                 self.dt,
-                self.spinup_alpha,
+                self.step_factors,
             );
             self.currents[m] = st.current_a;
         }

@@ -93,11 +93,12 @@ impl Effect for CurrentLag {
         (!ctx.follow_recorded_current && tau_s > MAX_SPINUP_S).then_some(tau_s)
     }
     fn switch_on(&self, ctx: &Context, scenario: &mut Scenario, fitted: &EffectFit) -> Vec<Param> {
-        // The simulator has no lag of the currents' field: a slow one is written to the
-        // augmented scenario as the nearest physics it can run, a spin-up as slow (the model
-        // file keeps the lag of the field itself).
-        if let Some(p) = SpinUp::from_slice(fitted.theta).filter(|_| !ctx.follow_recorded_current) {
-            scenario.motors.spinup_tau_s = p.spinup_tau_s;
+        // As the fits had it: a spin-up as a spin-up; a lag slower than any spin-up as the
+        // motors' current lagging the current of their speed (`motors.current_lag_s`, which
+        // the simulator and the replay run), beside the spin-up the fits kept.
+        self.apply(ctx, scenario, fitted.theta);
+        if let Some(tau_s) = self.field_lag_s(ctx, fitted.theta) {
+            scenario.motors.current_lag_s = tau_s;
         }
         searched_params(&self.search(ctx), fitted)
     }

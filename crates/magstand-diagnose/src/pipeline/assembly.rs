@@ -341,12 +341,26 @@ fn simulation_rmse(
         logged,
         ctx.command_lead,
     );
-    let design = Design::baseline(
+    let mut design = Design::baseline(
         &tr,
         ctx.follow_recorded_current,
         ctx.speed_powers,
         ctx.armed_current,
     );
+    // A current that lags the current of the motors' speed (a lag slower than any spin-up,
+    // switched on as `motors.current_lag_s`) lags the field of the calibrated current law
+    // with it; the replay's currents, and the supply and the per-motor field it fixes, have
+    // it already. Each change steps where the replay put it, read at the magnetometer's times.
+    let current_lag_s = augmented.params().motors.current_lag_s;
+    if current_lag_s > 0.0 {
+        let lead = super::design::lead_between_reads(
+            rec.typical_interval_s(),
+            augmented.params().logging.mag_delay_s,
+            ctx.command_lead,
+        );
+        let mut columns: Vec<&mut [f64]> = design.current_law_columns_mut().collect();
+        crate::effects::lag_in_place(&tr.t_s, &mut columns, current_lag_s, lead);
+    }
     let f = fit(
         &design,
         &rec.mag_ut,

@@ -327,7 +327,7 @@ pub(crate) fn build_with_lead(ctx: &Context, terms: &[(&dyn Effect, &[f64])], le
 /// quarters before one late by half an interval more). The replay reads a late magnetometer's
 /// rows at their delayed times with each command stepped at its moment; a lag of the field run
 /// over those reads must put each step where the replay did.
-fn lead_between_reads(interval_s: f64, delay_s: f64, lead: f64) -> f64 {
+pub(crate) fn lead_between_reads(interval_s: f64, delay_s: f64, lead: f64) -> f64 {
     if !(delay_s > 0.0 && interval_s > 0.0) {
         return lead;
     }
