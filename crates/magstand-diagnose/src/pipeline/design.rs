@@ -193,6 +193,15 @@ pub(crate) fn build_with_lead(ctx: &Context, terms: &[(&dyn Effect, &[f64])], le
     }
     let logged = Logged::of(ctx.rec, recorded_v, ctx.follow_recorded_current);
     let field_lags: Vec<Option<f64>> = terms.iter().map(|(e, t)| e.field_lag_s(ctx, t)).collect();
+    // A current lag the scenario states (`motors.current_lag_s`: the motors' current follows
+    // the current of their speed through it, as a `current_lag` finding slower than any
+    // spin-up has it) is the design's lag of the currents' field where no term brings one of
+    // its own (a finding replaces it): the replay steps the commands in full and the columns
+    // are lagged below, as for the finding. (A flight's field follows its measured current.)
+    let stated_lag_s = (!ctx.follow_recorded_current && field_lags.iter().all(Option::is_none))
+        .then(|| std::mem::take(&mut s.motors.current_lag_s))
+        .filter(|&tau_s| tau_s > 0.0);
+    let any_lag_s = field_lags.iter().flatten().next().copied().or(stated_lag_s);
     // Behind a lag of the currents' field, the spin-up is a second lag in series with it,
     // applied to the columns below with the field's: the replay steps each command in full at
     // its moment. A replay that spun the motors up itself would leave a change made within a
@@ -200,7 +209,7 @@ pub(crate) fn build_with_lead(ctx: &Context, terms: &[(&dyn Effect, &[f64])], le
     // would take the half as a step of its own and the rest as another, an interval later:
     // the chi-square would dip where the moment lies a spin-up time before the row, a false
     // optimum the timing search can settle in.
-    let spinup_behind_s = if field_lags.iter().any(Option::is_some) {
+    let spinup_behind_s = if any_lag_s.is_some() {
         std::mem::take(&mut s.motors.spinup_tau_s)
     } else {
         0.0
@@ -213,8 +222,8 @@ pub(crate) fn build_with_lead(ctx: &Context, terms: &[(&dyn Effect, &[f64])], le
     // Behind such a lag the current itself lags: a battery's sag follows the lagged current.
     // (Only a voltage that moves with the load sees it: elsewhere the replay is the same for
     // every lag, and kept for all of them.)
-    let supply_lags = match field_lags.iter().flatten().next() {
-        Some(&tau_s) if voltage_follows_load(&s, logged) => SupplyLags([tau_s, spinup_behind_s]),
+    let supply_lags = match any_lag_s {
+        Some(tau_s) if voltage_follows_load(&s, logged) => SupplyLags([tau_s, spinup_behind_s]),
         _ => SupplyLags::NONE,
     };
     let trace: &Trace = &ctx.replays.get_or_make(&s, lead, logged, supply_lags, || {
@@ -243,9 +252,20 @@ pub(crate) fn build_with_lead(ctx: &Context, terms: &[(&dyn Effect, &[f64])], le
             })
         })
         .collect();
+    let stated_kernel = stated_lag_s.map(|tau_s| {
+        FieldLag::new(
+            &ctx.series_lags,
+            &trace.t_s,
+            spinup_behind_s,
+            tau_s,
+            read_lead,
+        )
+    });
+    // Every lag of the currents' field: the terms' and a stated one.
+    let field_kernels = || kernels.iter().flatten().chain(&stated_kernel);
     // The law before the lag, for the terms that change the currents: their columns are
     // lagged after they are formed, as the currents they change are.
-    let lags_the_field = kernels.iter().any(Option::is_some);
+    let lags_the_field = field_kernels().next().is_some();
     let unlagged_law: Vec<(String, Vec<f64>)> =
         if lags_the_field && terms.iter().any(|(e, _)| e.changes_the_currents(ctx)) {
             design
@@ -255,7 +275,7 @@ pub(crate) fn build_with_lead(ctx: &Context, terms: &[(&dyn Effect, &[f64])], le
         } else {
             Vec::new()
         };
-    for lag in kernels.iter().flatten() {
+    for lag in field_kernels() {
         lag_current_field(&mut design, &mut fixed, lag);
     }
     // Every term's columns, from the baseline's current law as built; a term that lags the
@@ -274,7 +294,7 @@ pub(crate) fn build_with_lead(ctx: &Context, terms: &[(&dyn Effect, &[f64])], le
                 let mut columns = e.regressors(ctx, trace, &law_before_lag, theta);
                 let mut lagged: Vec<&mut [f64]> =
                     columns.iter_mut().map(|(_, c)| c.as_mut_slice()).collect();
-                for lag in kernels.iter().flatten() {
+                for lag in field_kernels() {
                     lag.apply(&mut lagged);
                 }
                 columns
