@@ -238,21 +238,7 @@ pub(crate) fn build_with_lead(ctx: &Context, terms: &[(&dyn Effect, &[f64])], le
     let mut fixed = trace.extra_ut.clone();
     // The lag runs over the magnetometer's reads: a late one reads between the commands' rows.
     let read_lead = lead_between_reads(ctx.rec.typical_interval_s(), s.logging.mag_delay_s, lead);
-    let kernels: Vec<Option<FieldLag>> = field_lags
-        .iter()
-        .map(|tau_s| {
-            tau_s.map(|tau_s| {
-                FieldLag::new(
-                    &ctx.series_lags,
-                    &trace.t_s,
-                    spinup_behind_s,
-                    tau_s,
-                    read_lead,
-                )
-            })
-        })
-        .collect();
-    let stated_kernel = stated_lag_s.map(|tau_s| {
+    let kernel = |tau_s: f64| {
         FieldLag::new(
             &ctx.series_lags,
             &trace.t_s,
@@ -260,7 +246,9 @@ pub(crate) fn build_with_lead(ctx: &Context, terms: &[(&dyn Effect, &[f64])], le
             tau_s,
             read_lead,
         )
-    });
+    };
+    let kernels: Vec<Option<FieldLag>> = field_lags.iter().map(|t| t.map(kernel)).collect();
+    let stated_kernel = stated_lag_s.map(kernel);
     // Every lag of the currents' field: the terms' and a stated one.
     let field_kernels = || kernels.iter().flatten().chain(&stated_kernel);
     // The law before the lag, for the terms that change the currents: their columns are
