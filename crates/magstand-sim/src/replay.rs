@@ -382,7 +382,7 @@ pub fn replay_behind_lags(
         return tr;
     }
     let mut steps = Vec::new();
-    let mut spinup = MotorLags::new(&p.motors);
+    let mut lags = MotorLags::new(&p.motors);
     // A late magnetometer's places are read from a copy of the state at the substep before
     // each, stepped on to it (a command change is a step at its moment, not a ramp between two
     // rows). The state itself is still read at every row, where a play operator is fed the
@@ -437,7 +437,7 @@ pub fn replay_behind_lags(
                     stepper.step(&mut copy, r, (a, to, to - a), lead_from, &mut at_place);
                     reader.read(&mut copy, place, &mut tr);
                 }
-                stepper.step(&mut state, r, (a, b, h), lead_from, &mut spinup);
+                stepper.step(&mut state, r, (a, b, h), lead_from, &mut lags);
             }
         }
         if places.is_none() {
@@ -529,21 +529,21 @@ struct CoupledStepper<'a> {
 
 impl CoupledStepper<'_> {
     /// Steps `st` through `(a, b, h)` of the interval ending at row `r`, whose command switches
-    /// at `lead_from` s; `spinup` keeps the lag factors of the last length.
+    /// at `lead_from` s; `lags` keeps the lag factors of the last length.
     fn step(
         &self,
         st: &mut CoupledState,
         r: usize,
         (a, b, h): (f64, f64, f64),
         lead_from: f64,
-        spinup: &mut MotorLags,
+        lags: &mut MotorLags,
     ) {
         let voltage = (self.voltage_at)(&st.supply, (r - 1, 0.0), st.sag_a());
         let parts = split_at_switch(r, a, b, lead_from);
         // Every motor steps by the same lengths: one lag factor each, none for a part of no
         // length (it steps no motor), and the last one kept for a length seen again (the
         // substeps of an interval are alike).
-        let alphas = lag_factors(&parts, spinup);
+        let alphas = lag_factors(&parts, lags);
         let mut total_a = self.avionics;
         for (m, ms) in st.motors.iter_mut().enumerate() {
             let motor = Motor {
@@ -671,11 +671,11 @@ impl MotorLags {
 }
 
 /// The lag factors of each part of `parts` (none for a part of no length, which steps no
-/// motor), from `spinup`, which keeps the last ones for a length seen again.
-fn lag_factors(parts: &Parts, spinup: &mut MotorLags) -> [StepFactors; 2] {
+/// motor), from `lags`, which keeps the last ones for a length seen again.
+fn lag_factors(parts: &Parts, lags: &mut MotorLags) -> [StepFactors; 2] {
     parts.map(|(_, len)| {
         if len > 0.0 {
-            spinup.of(len)
+            lags.of(len)
         } else {
             StepFactors {
                 spinup: 0.0,
@@ -771,10 +771,10 @@ fn replay_uncoupled(
         .into_par_iter()
         .map_init(
             || MotorLags::new(&p.motors),
-            |spinup, r| {
+            |lags, r| {
                 let dt = t_s[r] - t_s[r - 1];
                 let parts = split_at_switch(r, 0.0, dt, dt * (1.0 - lead));
-                let alphas = lag_factors(&parts, spinup);
+                let alphas = lag_factors(&parts, lags);
                 (parts, alphas)
             },
         )
@@ -786,14 +786,14 @@ fn replay_uncoupled(
         .unwrap_or(&[])
         .par_iter()
         .map(|&(k, frac)| {
-            let spinup = &mut MotorLags::new(&p.motors);
+            let lags = &mut MotorLags::new(&p.motors);
             if frac <= 0.0 || k + 1 >= rows {
-                let none = lag_factors(&[(k, 0.0), (k, 0.0)], spinup);
+                let none = lag_factors(&[(k, 0.0), (k, 0.0)], lags);
                 return (k, [(k, 0.0), (k, 0.0)], none);
             }
             let dt = t_s[k + 1] - t_s[k];
             let parts = split_at_switch(k + 1, 0.0, frac * dt, dt * (1.0 - lead));
-            let alphas = lag_factors(&parts, spinup);
+            let alphas = lag_factors(&parts, lags);
             (k, parts, alphas)
         })
         .collect();
