@@ -288,6 +288,14 @@ pub struct StepFactors {
     pub current: f64,
 }
 
+impl StepFactors {
+    /// The factors of no step (a part of an interval of no length).
+    pub const NONE: StepFactors = StepFactors {
+        spinup: 0.0,
+        current: 0.0,
+    };
+}
+
 /// State of one motor: rotor speed and rotor angle (for the imbalance force).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct MotorState {
@@ -475,9 +483,8 @@ mod tests {
                 );
             }
         }
-        let mut plain = MotorState::default();
-        plain.step(&MotorParams::default(), 0, 0.8, 12.0, dt);
-        let d = MotorParams::default();
+        let (d, mut plain) = (MotorParams::default(), MotorState::default());
+        plain.step(&d, 0, 0.8, 12.0, dt);
         let of_speed = d.current(0, plain.speed_rad_s, true);
         assert_eq!(plain.current_a.to_bits(), of_speed.to_bits());
     }

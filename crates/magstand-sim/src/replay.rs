@@ -677,10 +677,7 @@ fn lag_factors(parts: &Parts, lags: &mut MotorLags) -> [StepFactors; 2] {
         if len > 0.0 {
             lags.of(len)
         } else {
-            StepFactors {
-                spinup: 0.0,
-                current: 0.0,
-            }
+            StepFactors::NONE
         }
     })
 }
@@ -786,11 +783,10 @@ fn replay_uncoupled(
         .unwrap_or(&[])
         .par_iter()
         .map(|&(k, frac)| {
-            let lags = &mut MotorLags::new(&p.motors);
             if frac <= 0.0 || k + 1 >= rows {
-                let none = lag_factors(&[(k, 0.0), (k, 0.0)], lags);
-                return (k, [(k, 0.0), (k, 0.0)], none);
+                return (k, [(k, 0.0), (k, 0.0)], [StepFactors::NONE; 2]);
             }
+            let lags = &mut MotorLags::new(&p.motors);
             let dt = t_s[k + 1] - t_s[k];
             let parts = split_at_switch(k + 1, 0.0, frac * dt, dt * (1.0 - lead));
             let alphas = lag_factors(&parts, lags);
