@@ -329,6 +329,55 @@ fn a_sagging_battery_is_named_whatever_its_current_law_makes_of_the_voltage() {
     assert_eq!(o.verdict, ["battery_sag"], "{}", o.diagnosis.summary());
 }
 
+/// Regression: with `bat_v` and `bat_a` logged, the pack reported beside `battery_sag` was the
+/// one that gives the logged voltage through the simulator's motors' current, with the
+/// chi-square's curvature as its sd: on the held-out hexacopter (6S, 4 Ah, 0.03 ohm) the
+/// resistance was 0.0036 +- 0.0000007 ohm and the capacity 20.8 +- 0.00003 Ah, and the
+/// default stand's capacity 2.14 +- 0.00003 Ah against its 1.3. The resistance and the
+/// open-circuit voltage's fall per ampere-hour drawn now come from the logged voltage and
+/// current, whatever the motors draw and whatever the pack's chemistry, with an sd that holds
+/// the spread of the run's halves (the default stand's pack empties two thirds of the way
+/// through, where its voltage stops falling). The capacity is the LiPo curve's scale: it has
+/// no sd, and says what it rests on.
+#[test]
+fn a_logged_packs_resistance_and_fall_are_its_own_whatever_the_motors_draw() {
+    use magstand_standgen::Supply;
+    use magstand_tests::independent::{Mode, run_case_on};
+    for stand in [Stand::default(), Stand::held_out()] {
+        let Supply::Battery { resistance_ohm, .. } = stand.battery else {
+            panic!("the generator's stands have a battery: {:?}", stand.battery)
+        };
+        let fall_v_per_ah = stand.battery.cell_fall_v_per_ah().unwrap();
+        let o = run_case_on(&stand, &suite_case("battery sag"), Mode::Unstated, 1);
+        let d = &o.diagnosis;
+        let param = |name| {
+            named_param(d, "battery_sag", name)
+                .unwrap_or_else(|| panic!("no {name}: {:?}\n{}", o.verdict, d.summary()))
+        };
+        for (p, truth) in [
+            (param("internal_resistance_ohm"), resistance_ohm),
+            (param("open_circuit_fall_per_cell_v_per_ah"), fall_v_per_ah),
+        ] {
+            let sd = p.sd.unwrap_or_else(|| panic!("{p:?} has no sd"));
+            assert!(
+                (p.value - truth).abs() <= 3.0 * sd && sd < 0.5 * truth,
+                "{} {} +- {sd}, the generator's {truth}",
+                p.name,
+                p.value
+            );
+        }
+        let capacity = param("capacity_ah");
+        assert!(
+            capacity.sd.is_none()
+                && capacity
+                    .basis
+                    .as_deref()
+                    .is_some_and(|b| b.contains("LiPo")),
+            "{capacity:?}"
+        );
+    }
+}
+
 /// Regression: the same generator's battery (4S, 1.3 Ah, 0.045 ohm, an open-circuit voltage
 /// straight in the charge, emptied two thirds of the way through the run), `bat_v` not logged
 /// (the suite's case). The catalog's battery replays the nominal motor (current about as the

@@ -79,7 +79,22 @@ pub enum Supply {
     },
 }
 
+/// A cell's open-circuit voltage, empty, V: this generator's cells are straight in the charge.
+const CELL_EMPTY_V: f64 = 3.55;
+
+/// A cell's open-circuit voltage from empty to full, V.
+const CELL_SPAN_V: f64 = 0.65;
+
 impl Supply {
+    /// A battery's open-circuit fall per cell per ampere-hour drawn until it is empty, V/Ah
+    /// (None for a bench supply).
+    pub fn cell_fall_v_per_ah(&self) -> Option<f64> {
+        match *self {
+            Supply::Bench { .. } => None,
+            Supply::Battery { capacity_ah, .. } => Some(CELL_SPAN_V / capacity_ah),
+        }
+    }
+
     fn nominal_v(&self) -> f64 {
         match *self {
             Supply::Bench { voltage_v } => voltage_v,
@@ -418,7 +433,7 @@ pub fn generate(case: &Case) -> Generated {
                 resistance_ohm,
             } => {
                 let soc = (1.0 - charge_ah / capacity_ah).max(0.0);
-                cells as f64 * (3.55 + 0.65 * soc) - resistance_ohm * total
+                cells as f64 * (CELL_EMPTY_V + CELL_SPAN_V * soc) - resistance_ohm * total
             }
         };
         for (i, c) in cmd.iter().enumerate() {

@@ -211,7 +211,10 @@ impl BatterySag {
     }
 
     /// With `bat_v` recorded, the battery that reproduces it best through the replayed
-    /// currents (chi-square with a 10 mV voltage error).
+    /// currents (chi-square with a 10 mV voltage error): the simulator's motors' currents, so
+    /// that the augmented scenario gives the logged voltage. On a stand whose motors draw
+    /// another current its constants are in the simulator's units, not the pack's
+    /// ([`logged_pack`] gives those where `bat_a` is logged).
     fn fit_to_recorded_voltage(
         &self,
         ctx: &Context,
@@ -392,45 +395,123 @@ impl Effect for BatterySag {
         } else {
             self.fit_to_recorded_voltage(ctx, s)
         };
-        let Some((b, sd)) = fitted else {
+        let Some((b, _curvature_sd)) = fitted else {
             return Vec::new();
         };
         set_battery(ctx, pack, s, b);
-        let capacity = Param::new("capacity_ah", b.capacity_ah, sd.capacity_ah, "Ah");
+        // No sd: the curvature's would be conditional on a discharge curve nobody stated.
+        let capacity = Param::new("capacity_ah", b.capacity_ah, None, "Ah").resting_on(LIPO_BASIS);
         if matches!(self.form, Form::FreeDischarge { sag: false, .. }) {
             // The resistance was not fitted: whatever sag follows the commands at once is in
             // the calibrated current law.
-            return if cells_known {
-                vec![capacity, cells]
+            return std::iter::once(capacity)
+                .chain(cells_known.then_some(cells))
+                .collect();
+        }
+        // With the voltage and the current logged, the pack's load and fall are the log's own.
+        if let Some([resistance, fall]) = logged_pack(ctx, pack.0) {
+            return vec![resistance, fall, capacity, cells];
+        }
+        // Otherwise the sag is seen through the simulator's motors' current: another stand's
+        // motors draw another, and the resistance scales with it.
+        let per_cell = if cells_known { 1.0 } else { pack.0 as f64 };
+        let resistance = Param::new(
+            if cells_known {
+                "internal_resistance_ohm"
             } else {
-                vec![capacity]
-            };
-        }
-        if !cells_known {
-            // Only the voltage's relative fall is seen: the resistance over the cells'
-            // voltage, not the pack's resistance, whose cells nobody stated.
-            let per_cell = |r: f64| r / pack.0 as f64;
-            return vec![
-                Param::new(
-                    "internal_resistance_per_cell_ohm",
-                    per_cell(b.internal_resistance_ohm),
-                    sd.internal_resistance_ohm.map(per_cell),
-                    "ohm",
-                ),
-                capacity,
-            ];
-        }
-        vec![
-            Param::new(
-                "internal_resistance_ohm",
-                b.internal_resistance_ohm,
-                sd.internal_resistance_ohm,
-                "ohm",
-            ),
-            capacity,
-            cells,
-        ]
+                // Only the voltage's relative fall is seen: the resistance over the cells'
+                // voltage, not the pack's resistance, whose cells nobody stated.
+                "internal_resistance_per_cell_ohm"
+            },
+            b.internal_resistance_ohm / per_cell,
+            None,
+            "ohm",
+        )
+        .resting_on(MOTOR_CURRENT_BASIS);
+        std::iter::once(resistance)
+            .chain([capacity])
+            .chain(cells_known.then_some(cells))
+            .collect()
     }
+}
+
+/// What a reported capacity rests on.
+const LIPO_BASIS: &str = "the simulator's LiPo discharge curve (3.27 V empty to 4.2 V full per cell, a \
+     plateau between): the pack's chemistry is not stated, and on another curve the same data give \
+     another capacity (it scales the curve over the charge drawn)";
+
+/// What a resistance seen without the logged current rests on.
+const MOTOR_CURRENT_BASIS: &str = "the simulator's motors' current (bat_v and bat_a are not both \
+     logged): a stand whose motors draw another current at the same commands has another \
+     resistance for the same sag";
+
+/// With `bat_v` and `bat_a` logged, the pack through its own log, whatever its chemistry and
+/// whatever the motors draw: the logged voltage as a straight line in the charge drawn (the
+/// logged current's integral) and the current, by least squares ([`pack_line`]). Its internal
+/// resistance, ohm, and the open-circuit voltage's mean fall per cell per ampere-hour drawn
+/// over the run, V/Ah. A pack's curve is not a straight line (it bends, and it flattens once
+/// empty), so the sds add to the fit's the spread between the two halves of the run, each
+/// fitted on its own, as the replication of a name does. None where the log does not
+/// determine them (no charge drawn, or a current that does not vary).
+fn logged_pack(ctx: &Context, cells: u32) -> Option<[Param; 2]> {
+    let (v, i) = (ctx.rec.bat_v.as_deref()?, ctx.rec.bat_a.as_deref()?);
+    let drawn: Vec<f64> = charge_drawn_ah(&ctx.rec.t_s, i).collect();
+    let rows: Vec<usize> = (0..v.len())
+        .filter(|&k| v[k].is_finite() && i[k].is_finite() && drawn[k].is_finite())
+        .collect();
+    let line = |rows: &[usize]| pack_line(rows.iter().map(|&k| (drawn[k], i[k], v[k])));
+    let whole = line(&rows)?;
+    let (first, second) = rows.split_at(rows.len() / 2);
+    let (first, second) = (line(first)?, line(second)?);
+    let sd = |j: usize| {
+        let spread = 0.5 * (first.0[j] - second.0[j]);
+        whole.1[j].hypot(spread)
+    };
+    let cells = cells as f64;
+    let (resistance, fall) = (whole.0[1], whole.0[0] / cells);
+    Some([
+        Param::new("internal_resistance_ohm", resistance, Some(sd(1)), "ohm"),
+        Param::new(
+            "open_circuit_fall_per_cell_v_per_ah",
+            fall,
+            Some(sd(0) / cells),
+            "V/Ah",
+        ),
+    ])
+}
+
+/// The least-squares line `v = v0 - fall * drawn - resistance * current` through `rows` of
+/// `(drawn_ah, current_a, voltage_v)`: `([fall, resistance], [their sds])`, the sds from the
+/// residuals widened for their lag-one correlation. None where the line is not determined
+/// (fewer than four rows, a charge or current that does not vary) or not finite.
+fn pack_line(rows: impl Iterator<Item = (f64, f64, f64)> + Clone) -> Option<([f64; 2], [f64; 2])> {
+    let x = |(q, i, _): (f64, f64, f64)| nalgebra::Vector3::new(1.0, q, i);
+    let mut normal = nalgebra::Matrix3::<f64>::zeros();
+    let mut moment = nalgebra::Vector3::<f64>::zeros();
+    let mut n = 0usize;
+    for row in rows.clone() {
+        normal += x(row) * x(row).transpose();
+        moment += x(row) * row.2;
+        n += 1;
+    }
+    let chol = normal.cholesky()?;
+    let coef = chol.solve(&moment);
+    let residuals: Vec<f64> = rows.map(|row| row.2 - x(row).dot(&coef)).collect();
+    let rss: f64 = residuals.iter().map(|r| r * r).sum();
+    let rho = (residuals.windows(2).map(|w| w[0] * w[1]).sum::<f64>() / rss).clamp(0.0, 0.99);
+    let dof = n.checked_sub(3).filter(|&d| d > 0)? as f64;
+    let variance = rss / dof * (1.0 + rho) / (1.0 - rho);
+    // The diagonal of the inverse normal matrix, one unit column solved at a time.
+    let sd = |j: usize| {
+        let e = nalgebra::Vector3::from_fn(|r, _| if r == j { 1.0 } else { 0.0 });
+        (chol.solve(&e)[j] * variance).sqrt()
+    };
+    let (value, sd) = ([-coef[1], -coef[2]], [sd(1), sd(2)]);
+    value
+        .iter()
+        .chain(&sd)
+        .all(|x| x.is_finite())
+        .then_some((value, sd))
 }
 
 /// Without `bat_v`, the voltage's course over the run is the candidate's own, and two things
@@ -461,7 +542,7 @@ fn discharge_columns(
         Vec::with_capacity(trace.t_s.len()),
         Vec::with_capacity(trace.t_s.len()),
     ];
-    for drawn_ah in charge_drawn_ah(trace) {
+    for drawn_ah in charge_drawn_ah(&trace.t_s, &trace.total_a) {
         let soc = start_charge - drawn_ah / capacity_ah;
         shapes[0].push((lipo_cell_ocv_v(soc) - start_v) / start_v);
         shapes[1].push((straight(soc) - straight_start_v) / start_v);
@@ -488,14 +569,14 @@ fn discharge_columns(
         .collect()
 }
 
-/// The charge the replay drew by each row, Ah, by the trapezoid rule over the rows (the
-/// replay's substeps are not kept).
-fn charge_drawn_ah(trace: &Trace) -> impl Iterator<Item = f64> + '_ {
+/// The charge a current `current_a` (the replay's or the logged one, at times `t_s`) drew by
+/// each row, Ah, by the trapezoid rule over the rows (a replay's substeps are not kept).
+fn charge_drawn_ah<'a>(t_s: &'a [f64], current_a: &'a [f64]) -> impl Iterator<Item = f64> + 'a {
     let mut drawn_ah = 0.0;
-    (0..trace.t_s.len()).map(move |k| {
+    (0..t_s.len()).map(move |k| {
         if k > 0 {
-            let dt_s = trace.t_s[k] - trace.t_s[k - 1];
-            drawn_ah += 0.5 * (trace.total_a[k] + trace.total_a[k - 1]) * dt_s / 3600.0;
+            let dt_s = t_s[k] - t_s[k - 1];
+            drawn_ah += 0.5 * (current_a[k] + current_a[k - 1]) * dt_s / 3600.0;
         }
         drawn_ah
     })
@@ -524,7 +605,7 @@ fn times_law<'a>(
 /// law column times the charge enters with a free gain, and no constant of the pack is
 /// searched.
 fn drawn_charge_columns(trace: &Trace, law: &[(&str, &[f64])]) -> Vec<(String, Vec<f64>)> {
-    let drawn: Vec<f64> = charge_drawn_ah(trace).collect();
+    let drawn: Vec<f64> = charge_drawn_ah(&trace.t_s, &trace.total_a).collect();
     times_law(DRAWN_CHARGE, &drawn, law).collect()
 }
 
@@ -576,6 +657,63 @@ mod tests {
         let b = no_sag.battery(&[2.5]).expect("one capacity");
         assert_eq!((b.internal_resistance_ohm, b.capacity_ah), (0.0, 2.5));
         assert!(no_sag.battery(&[0.03, 2.5]).is_none());
+    }
+
+    /// The pack's line through a logged voltage: a pack whose open-circuit voltage is straight
+    /// in the charge gives its fall and resistance back; one that flattens once empty gives
+    /// the run's mean fall with an sd that holds both halves' (the line's own sd alone would
+    /// claim a precision the curve does not have).
+    #[test]
+    fn a_logged_pack_gives_its_fall_and_resistance_with_the_spread_of_its_curve() {
+        let (fall, resistance) = (0.6, 0.04);
+        let current = |k: usize| 5.0 + 20.0 * ((k / 50) % 4) as f64;
+        let mut drawn = 0.0;
+        let rows: Vec<(f64, f64, f64)> = (0..4000)
+            .map(|k| {
+                drawn += current(k) * 0.1 / 3600.0;
+                // A deterministic noise of 2 mV.
+                let noise = 0.002 * ((k as f64 * 1.7).sin());
+                (
+                    drawn,
+                    current(k),
+                    16.8 - fall * drawn - resistance * current(k) + noise,
+                )
+            })
+            .collect();
+        let (value, sd) = pack_line(rows.iter().copied()).expect("a determined line");
+        assert!(
+            (value[0] - fall).abs() < 1e-3 && (value[1] - resistance).abs() < 1e-4,
+            "fall {} V/Ah and resistance {} ohm, expected {fall} and {resistance}",
+            value[0],
+            value[1]
+        );
+        assert!(sd[0] < 1e-3 && sd[1] < 1e-4, "{sd:?}");
+        // No charge drawn, no fall to tell: not determined.
+        let still: Vec<(f64, f64, f64)> = rows.iter().map(|&(_, i, v)| (0.0, i, v)).collect();
+        assert!(pack_line(still.into_iter()).is_none());
+        // Once empty the voltage no longer falls with the charge: the halves disagree.
+        let empty_at = rows[2000].0;
+        let flattened: Vec<(f64, f64, f64)> = rows
+            .iter()
+            .map(|&(q, i, _)| (q, i, 16.8 - fall * q.min(empty_at) - resistance * i))
+            .collect();
+        let (first, second) = flattened.split_at(2000);
+        let (whole, halves) = (
+            pack_line(flattened.iter().copied()).unwrap(),
+            [first, second].map(|h| pack_line(h.iter().copied()).unwrap().0[0]),
+        );
+        let spread = 0.5 * (halves[0] - halves[1]);
+        assert!(
+            (halves[0] - fall).abs() < 1e-6 && halves[1].abs() < 1e-6,
+            "halves' falls {halves:?}, expected {fall} and 0"
+        );
+        assert!(
+            whole.0[0] > 0.0
+                && whole.0[0] < fall
+                && (whole.0[0] - fall).abs() < whole.1[0].hypot(spread) * 3.0,
+            "the whole run's fall {:?} with the spread {spread} does not hold {fall}",
+            whole
+        );
     }
 
     /// Regression: with `bat_v` logged, the battery reported beside `battery_sag` had the

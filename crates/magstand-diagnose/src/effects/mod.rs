@@ -133,6 +133,10 @@ pub struct Param {
     pub sd: Option<f64>,
     /// Unit.
     pub unit: String,
+    /// What the value rests on that nobody stated, where it is a model's constant rather
+    /// than the stand's (the battery's capacity is the LiPo curve's scale); absent otherwise.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub basis: Option<String>,
 }
 
 impl Param {
@@ -143,6 +147,15 @@ impl Param {
             value,
             sd: sd.filter(|s| s.is_finite()),
             unit: unit.into(),
+            basis: None,
+        }
+    }
+
+    /// This parameter, resting on `basis`: a constant of the model nobody stated.
+    pub fn resting_on(self, basis: &str) -> Param {
+        Param {
+            basis: Some(basis.into()),
+            ..self
         }
     }
 
