@@ -241,6 +241,11 @@ impl Diagnosis {
             if !params.is_empty() {
                 s.push_str(&format!("    {}\n", params.join(", ")));
             }
+            for p in &e.params {
+                if let Some(basis) = &p.basis {
+                    s.push_str(&format!("    {} rests on {basis}\n", p.name));
+                }
+            }
         }
         s.push_str(&format!(
             "simulation vs recording, held-out RMSE: {} -> {} µT\n",

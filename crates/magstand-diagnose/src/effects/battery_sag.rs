@@ -437,8 +437,10 @@ impl Effect for BatterySag {
 
 /// What a reported capacity rests on.
 const LIPO_BASIS: &str = "the simulator's LiPo discharge curve (3.27 V empty to 4.2 V full per cell, a \
-     plateau between): the pack's chemistry is not stated, and on another curve the same data give \
-     another capacity (it scales the curve over the charge drawn)";
+     plateau between), drawn by the simulator's motors: the pack's chemistry is not stated, and on \
+     another curve, or with motors that draw another current, the same data give another capacity. \
+     It is the augmented scenario's, which reproduces the recording in the simulator; where \
+     open_circuit_fall_per_cell_v_per_ah is reported, that is the pack's own";
 
 /// What a resistance seen without the logged current rests on.
 const MOTOR_CURRENT_BASIS: &str = "the simulator's motors' current (bat_v and bat_a are not both \
