@@ -329,6 +329,41 @@ fn a_sagging_battery_is_named_whatever_its_current_law_makes_of_the_voltage() {
     assert_eq!(o.verdict, ["battery_sag"], "{}", o.diagnosis.summary());
 }
 
+/// Regression: the dead zone calibrated on a stand nobody described was reported with the
+/// curvature of the chi-square at its optimum as its sd, under one shape of the current law.
+/// The law's shape is calibrated too, and not stated; a current that rises slowly from its
+/// dead zone looks like a later start, so the optimum moves with the law's shape far beyond
+/// that sd. On the generator's hexacopter control (dead zone 0.06), seed 1: 0.146 +- 0.0009,
+/// 95 sd from the truth, while laws of three and four powers of speed put the optimum at 0 and
+/// 0.18. The sd now holds half the spread of the optimum over the laws of fewer powers, and
+/// the value says what it rests on. (Over the suite's 62 recordings with a calibrated dead
+/// zone, both stands, seeds 1 and 2, the generator's dead zone lies within 2 sd on 26, 9
+/// before: the bias of a law that cannot follow a slow rise remains; see the README.)
+#[test]
+fn a_calibrated_dead_zone_holds_the_spread_over_the_current_laws_shapes() {
+    use magstand_tests::independent::{Mode, run_case_on};
+    let stand = Stand::held_out();
+    let o = run_case_on(&stand, &suite_case("control"), Mode::Unstated, 1);
+    let d = &o.diagnosis;
+    let dz = d
+        .baseline
+        .calibration
+        .iter()
+        .find(|p| p.name == "motors.dead_zone")
+        .unwrap_or_else(|| panic!("no calibrated dead zone: {}", d.summary()));
+    let sd = dz.sd.unwrap_or_else(|| panic!("{dz:?} has no sd"));
+    assert!(
+        (dz.value - stand.dead_zone).abs() <= 2.0 * sd
+            && dz
+                .basis
+                .as_deref()
+                .is_some_and(|b| b.contains("current law")),
+        "dead zone {} +- {sd}, the generator's {}: {dz:?}",
+        dz.value,
+        stand.dead_zone
+    );
+}
+
 /// Regression: with `bat_v` and `bat_a` logged, the pack reported beside `battery_sag` was the
 /// one that gives the logged voltage through the simulator's motors' current, with the
 /// chi-square's curvature as its sd: on the held-out hexacopter (6S, 4 Ah, 0.03 ohm) the

@@ -38,6 +38,9 @@ impl Effect for DeadZone {
     fn stand_constant(&self, ctx: &Context) -> Option<(&'static str, f64)> {
         Some(("motors.dead_zone", ctx.nominal.motors.dead_zone))
     }
+    fn trades_off_with_the_law_shape(&self) -> bool {
+        true
+    }
     fn has_a_basin_per_interval(&self) -> bool {
         // At each logged command level a motor switches between driven and not: the
         // chi-square turns there, with a basin between each two levels.

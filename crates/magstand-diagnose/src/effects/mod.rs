@@ -226,6 +226,13 @@ pub trait Effect: Sync + Send {
     /// or none where a logged column stands in for them.
     fn search(&self, ctx: &Context) -> Vec<Search>;
 
+    /// Whether this effect's calibrated constant trades off against the shape of the
+    /// calibrated current law (a dead zone: a law rising slowly from zero looks like a later
+    /// start), so that its reported sd holds the spread over the law's shapes.
+    fn trades_off_with_the_law_shape(&self) -> bool {
+        false
+    }
+
     /// The stand constant this effect re-fits, as its scenario key and its value in `s`, for
     /// an effect that is a different value of a nominal constant (a dead zone, a spin-up time)
     /// rather than physics the nominal stand lacks. Where the scenario states the constant, such
