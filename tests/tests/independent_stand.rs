@@ -336,8 +336,8 @@ fn a_sagging_battery_is_named_whatever_its_current_law_makes_of_the_voltage() {
 /// that sd. On the generator's hexacopter control (dead zone 0.06), seed 1: 0.146 +- 0.0009,
 /// 95 sd from the truth, while laws of three and four powers of speed put the optimum at 0 and
 /// 0.18. The sd now holds half the spread of the optimum over the laws of fewer powers, and
-/// the value says what it rests on. (Over the suite's 62 recordings with a calibrated dead
-/// zone, both stands, seeds 1 and 2, the generator's dead zone lies within 2 sd on 26, 9
+/// the value says what it rests on. (Over the suite's 68 recordings with a calibrated dead
+/// zone, both stands, seeds 1 and 2, the generator's dead zone lies within 2 sd on 38, 9
 /// before: the bias of a law that cannot follow a slow rise remains; see the README.)
 #[test]
 fn a_calibrated_dead_zone_holds_the_spread_over_the_current_laws_shapes() {

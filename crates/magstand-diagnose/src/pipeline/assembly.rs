@@ -151,8 +151,13 @@ fn separate_calibration(
                     ..p
                 };
                 match spread {
+                    // At a range limit the chi-square gives no curvature: the spread is
+                    // then the only uncertainty there is.
                     Some((lo, hi)) => Param {
-                        sd: p.sd.map(|sd| sd.hypot(0.5 * (hi - lo))),
+                        sd: p
+                            .sd
+                            .map(|sd| sd.hypot(0.5 * (hi - lo)))
+                            .or((hi > lo).then_some(0.5 * (hi - lo))),
                         ..p
                     }
                     .resting_on(&format!(
@@ -182,8 +187,8 @@ fn separate_calibration(
     (findings, calibrated)
 }
 
-/// The range of the optimum of `terms[k]`'s one linear parameter, on its search grid with the
-/// others held, over the current laws of [`MIN_SPEED_POWERS`](crate::fit::MIN_SPEED_POWERS)
+/// The range of the optimum of `terms[k]`'s one linear parameter, on every other point of its
+/// search grid with the others held, over the current laws of [`MIN_SPEED_POWERS`](crate::fit::MIN_SPEED_POWERS)
 /// to the context's powers of speed (each a subset of the baseline's columns, and of the
 /// terms' columns made from them), with its refined value. None where the law has no fewer
 /// powers, or the parameter is not one linear search.
@@ -199,9 +204,12 @@ fn law_shape_spread(
     if powers <= min_powers || search.log || search.points < 2 {
         return None;
     }
-    let step = (search.hi - search.lo) / (search.points - 1) as f64;
+    // Every other point of the search's grid: a spread, not an optimum, is wanted, and each
+    // point is a replay of the recording.
+    let points = search.points.div_ceil(2).max(2);
+    let step = (search.hi - search.lo) / (points - 1) as f64;
     // Each grid point one design, fitted with each law: chi-square by law, by point.
-    let profiles: Vec<Vec<f64>> = (0..search.points)
+    let profiles: Vec<Vec<f64>> = (0..points)
         .into_par_iter()
         .map(|i| {
             let theta = [search.lo + i as f64 * step];
@@ -226,8 +234,8 @@ fn law_shape_spread(
     let refined = *terms[k].theta.first()?;
     (0..powers - min_powers)
         .map(|law| {
-            let best = (0..search.points)
-                .min_by(|&a, &b| profiles[a][law].total_cmp(&profiles[b][law]))?;
+            let best =
+                (0..points).min_by(|&a, &b| profiles[a][law].total_cmp(&profiles[b][law]))?;
             profiles[best][law]
                 .is_finite()
                 .then_some(search.lo + best as f64 * step)
