@@ -92,8 +92,12 @@ pub fn section(d: &Diagnosis) -> Result<Section, ReportError> {
                 e.params
                     .iter()
                     .map(|p| {
+                        let basis = p
+                            .basis
+                            .as_ref()
+                            .map_or(String::new(), |b| format!(" (rests on {b})"));
                         format!(
-                            "{} = {} {}",
+                            "{} = {} {}{basis}",
                             p.name,
                             magstand_diagnose::diagnosis::value_with_sd(p.value, p.sd),
                             p.unit
