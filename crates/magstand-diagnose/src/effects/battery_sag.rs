@@ -197,12 +197,11 @@ fn set_battery(ctx: &Context, (cells, initial_charge): (u32, f64), s: &mut Scena
 }
 
 impl BatterySag {
-    /// The battery of searched parameters (or their uncertainties) `theta`: without a sag
-    /// under load, no resistance (zero, and its uncertainty the default's).
-    fn battery<T: Copy + Default>(&self, theta: &[T]) -> Option<Battery<T>> {
+    /// The battery of searched parameters `theta`: without a sag under load, no resistance.
+    fn battery(&self, theta: &[f64]) -> Option<Battery> {
         match (self.form, theta) {
             (Form::FreeDischarge { sag: false, .. }, &[capacity_ah]) => Some(Battery {
-                internal_resistance_ohm: T::default(),
+                internal_resistance_ohm: 0.0,
                 capacity_ah,
             }),
             (Form::FreeDischarge { sag: false, .. }, _) => None,
@@ -215,11 +214,7 @@ impl BatterySag {
     /// that the augmented scenario gives the logged voltage. On a stand whose motors draw
     /// another current its constants are in the simulator's units, not the pack's
     /// ([`logged_pack`] gives those where `bat_a` is logged).
-    fn fit_to_recorded_voltage(
-        &self,
-        ctx: &Context,
-        s: &Scenario,
-    ) -> Option<(Battery, Battery<Option<f64>>)> {
+    fn fit_to_recorded_voltage(&self, ctx: &Context, s: &Scenario) -> Option<Battery> {
         let v = ctx.rec.bat_v.as_deref()?;
         let logged_pack = pack(ctx);
         let o = minimize(&[RESISTANCE_SEARCH, CAPACITY_SEARCH], |theta| {
@@ -234,7 +229,7 @@ impl BatterySag {
                     .sum(),
             )
         })?;
-        Some((Battery::from_slice(&o.theta)?, Battery::from_slice(&o.sd)?))
+        Battery::from_slice(&o.theta)
     }
 }
 
@@ -391,11 +386,13 @@ impl Effect for BatterySag {
         let (pack, cells_known) = pack_and_whether_known(ctx);
         let cells = Param::new("cells", pack.0 as f64, None, "cells in series");
         let fitted = if ctx.rec.bat_v.is_none() {
-            self.battery(f.theta).zip(self.battery(f.theta_sd))
+            self.battery(f.theta)
         } else {
             self.fit_to_recorded_voltage(ctx, s)
         };
-        let Some((b, _curvature_sd)) = fitted else {
+        // The searches' sds are not reported: they are conditional on the LiPo curve and on
+        // the simulator's motors, which nobody stated (see the bases below).
+        let Some(b) = fitted else {
             return Vec::new();
         };
         set_battery(ctx, pack, s, b);
