@@ -680,6 +680,18 @@ fn a_dead_zone_stated_too_low_is_named_with_the_armed_motors_current() {
         p.value,
         o.diagnosis.summary()
     );
+    // The law's shape is calibrated from the commands here too, though the stand is stated:
+    // the fitted dead zone's sd holds its spread over the laws' shapes, as a calibrated one's
+    // does (it had the chi-square's curvature alone).
+    let sd = p.sd.unwrap_or_else(|| panic!("{p:?} has no sd"));
+    assert!(
+        (p.value - 0.25).abs() <= 2.0 * sd
+            && p.basis
+                .as_deref()
+                .is_some_and(|b| b.contains("current law")),
+        "dead zone {} +- {sd} (generated 0.25): {p:?}",
+        p.value
+    );
 }
 
 /// Regression: beside the generator's battery (its current linear in the supply voltage,

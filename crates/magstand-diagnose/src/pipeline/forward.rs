@@ -390,7 +390,19 @@ const REJECT_STATED_SD: f64 = 3.0;
 /// ([`Effect::inseparable_from_stated`]). Otherwise it is kept in the record, untestable,
 /// with why. (A constant the scenario leaves out is tested by its held-out gain
 /// and, when accepted, reported as calibration: see [`calibrates`].)
-fn refuse_within_stated(c: &mut Candidate, effect: &dyn Effect, ctx: &Context) {
+///
+/// The uncertainty of a constant that trades off against the calibrated current law's shape
+/// (a dead zone) holds half the spread of its optimum over the laws of fewer powers of speed
+/// ([`law_shape_spread`](super::law_shape::law_shape_spread)), as its report does: the law's
+/// shape is calibrated whatever the scenario states. The spread is profiled (16 replays) only
+/// where the curvature alone would reject the statement.
+fn refuse_within_stated(
+    c: &mut Candidate,
+    effect: &dyn Effect,
+    ctx: &Context,
+    terms: &[Term],
+    weights: &Weights,
+) {
     let Some((key, stated)) = stated_constant(effect, ctx) else {
         return;
     };
@@ -399,12 +411,26 @@ fn refuse_within_stated(c: &mut Candidate, effect: &dyn Effect, ctx: &Context) {
     let Some((theta, sd, fitted)) = &c.fitted else {
         return;
     };
-    let shown = sd
+    let mut shown = sd
         .first()
         .copied()
         .flatten()
         .map(|sd| sd * fitted.sd_factor);
-    let rejects = shown.is_some_and(|sd| (theta[0] - stated).abs() > REJECT_STATED_SD * sd);
+    let rejects_by =
+        |sd: Option<f64>| sd.is_some_and(|sd| (theta[0] - stated).abs() > REJECT_STATED_SD * sd);
+    if rejects_by(shown) && effect.trades_off_with_the_law_shape() {
+        let mut with = terms.to_vec();
+        with.push(Term {
+            effect,
+            theta: theta.clone(),
+            theta_sd: sd.clone(),
+        });
+        let spread = super::law_shape::law_shape_spread(ctx, &with, terms.len(), weights);
+        if let (Some(sd), Some((lo, hi))) = (shown, spread) {
+            shown = Some(sd.hypot(0.5 * (hi - lo)));
+        }
+    }
+    let rejects = rejects_by(shown);
     let fitted = crate::diagnosis::value_with_sd(theta[0], shown);
     let why_not = if !rejects {
         format!(
@@ -864,7 +890,7 @@ pub(crate) fn forward_search<'e>(
             .collect();
         unchanged.clear();
         for (c, e) in tried.iter_mut().zip(&open) {
-            refuse_within_stated(c, *e, shared);
+            refuse_within_stated(c, *e, shared, &terms, w);
         }
         let k = tried.iter().filter(|c| c.fitted.is_some()).count().max(1);
         let threshold = cfg.significance / k as f64;

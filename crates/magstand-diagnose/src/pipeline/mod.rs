@@ -31,6 +31,7 @@ pub(crate) mod design;
 pub(crate) mod flight;
 pub(crate) mod forward;
 pub(crate) mod gain;
+pub(crate) mod law_shape;
 pub(crate) mod refine;
 
 use forward::BaselineFit;
