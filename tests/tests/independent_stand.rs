@@ -329,6 +329,30 @@ fn a_sagging_battery_is_named_whatever_its_current_law_makes_of_the_voltage() {
     assert_eq!(o.verdict, ["battery_sag"], "{}", o.diagnosis.summary());
 }
 
+/// Regression: a spin-up calibrated at the fastest one searched (1 ms, on the generator's
+/// stands, whose current follows each command at once) was reported with the chi-square's
+/// curvature there as its sd: on the held-out hexacopter's control, seed 2, 0.001 +- 0.334 s,
+/// an sd a hundred times the spin-up of the slowest propeller. At the edge of its range the
+/// value is a limit, not an estimate: it has no sd, and its basis says which edge.
+#[test]
+fn a_spin_up_at_the_edge_of_its_range_is_a_limit_without_an_sd() {
+    use magstand_tests::independent::{Mode, run_case_on};
+    let o = run_case_on(&Stand::held_out(), &control(false), Mode::Unstated, 2);
+    let d = &o.diagnosis;
+    let spinup = d
+        .baseline
+        .calibration
+        .iter()
+        .find(|p| p.name == "motors.spinup_tau_s")
+        .unwrap_or_else(|| panic!("no calibrated spin-up: {}", d.summary()));
+    assert!(
+        spinup.value <= 0.00102
+            && spinup.sd.is_none()
+            && spinup.basis.as_deref().is_some_and(|b| b.contains("edge")),
+        "{spinup:?}"
+    );
+}
+
 /// Regression: the dead zone calibrated on a stand nobody described was reported with the
 /// curvature of the chi-square at its optimum as its sd, under one shape of the current law.
 /// The law's shape is calibrated too, and not stated; a current that rises slowly from its
