@@ -42,6 +42,15 @@ fn named_param<'d>(
     named(d, effect).and_then(|e| e.params.iter().find(|p| p.name == param))
 }
 
+/// The calibrated stand constant `key` of `d` (its scenario key, e.g. `motors.dead_zone`).
+fn calibrated<'d>(d: &'d magstand_diagnose::Diagnosis, key: &str) -> &'d magstand_diagnose::Param {
+    d.baseline
+        .calibration
+        .iter()
+        .find(|p| p.name == key)
+        .unwrap_or_else(|| panic!("no calibrated {key}: {}", d.summary()))
+}
+
 /// The suite case labelled `label`, seed 1, on `stand` sampled at `rate_hz`, diagnosed
 /// without a scenario.
 fn unstated_at(stand: Stand, rate_hz: f64, label: &str) -> magstand_tests::independent::Outcome {
@@ -338,13 +347,7 @@ fn a_sagging_battery_is_named_whatever_its_current_law_makes_of_the_voltage() {
 fn a_spin_up_at_the_edge_of_its_range_is_a_limit_without_an_sd() {
     use magstand_tests::independent::{Mode, run_case_on};
     let o = run_case_on(&Stand::held_out(), &control(false), Mode::Unstated, 2);
-    let d = &o.diagnosis;
-    let spinup = d
-        .baseline
-        .calibration
-        .iter()
-        .find(|p| p.name == "motors.spinup_tau_s")
-        .unwrap_or_else(|| panic!("no calibrated spin-up: {}", d.summary()));
+    let spinup = calibrated(&o.diagnosis, "motors.spinup_tau_s");
     assert!(
         spinup.value <= 0.00102
             && spinup.sd.is_none()
@@ -368,13 +371,7 @@ fn a_calibrated_dead_zone_holds_the_spread_over_the_current_laws_shapes() {
     use magstand_tests::independent::{Mode, run_case_on};
     let stand = Stand::held_out();
     let o = run_case_on(&stand, &suite_case("control"), Mode::Unstated, 1);
-    let d = &o.diagnosis;
-    let dz = d
-        .baseline
-        .calibration
-        .iter()
-        .find(|p| p.name == "motors.dead_zone")
-        .unwrap_or_else(|| panic!("no calibrated dead zone: {}", d.summary()));
+    let dz = calibrated(&o.diagnosis, "motors.dead_zone");
     let sd = dz.sd.unwrap_or_else(|| panic!("{dz:?} has no sd"));
     assert!(
         (dz.value - stand.dead_zone).abs() <= 2.0 * sd
