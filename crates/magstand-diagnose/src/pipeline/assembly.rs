@@ -127,8 +127,10 @@ pub(crate) fn assemble(
 /// A fitted constant that trades off against the shape of the calibrated current law (a dead
 /// zone: a law that rises slowly from zero current looks like a later start) has its sd
 /// widened by the spread of its optimum over the laws of fewer powers of speed
-/// ([`law_shape_spread`]), calibrated or a finding against a stated value alike: the law's
-/// shape is calibrated from the recording's commands either way, whatever the scenario states.
+/// ([`law_shape_spread`](super::law_shape::law_shape_spread)), calibrated or a finding against a
+/// stated value alike: the law's shape is calibrated from the recording's commands either way,
+/// whatever the scenario states. A calibrated value at the edge of its search range is a
+/// limit: no sd, and the range as its basis.
 fn separate_calibration(
     ctx: &Context,
     terms: &[Term],
