@@ -354,6 +354,13 @@ fn a_spin_up_at_the_edge_of_its_range_is_a_limit_without_an_sd() {
             && spinup.basis.as_deref().is_some_and(|b| b.contains("edge")),
         "{spinup:?}"
     );
+    // The text summary shows the calibrated constants and what each rests on.
+    let summary = o.diagnosis.summary();
+    assert!(
+        summary.contains("calibrated, not stated: motors.spinup_tau_s = 0.0010 s")
+            && summary.contains("motors.spinup_tau_s rests on the edge"),
+        "{summary}"
+    );
 }
 
 /// Regression: the dead zone calibrated on a stand nobody described was reported with the

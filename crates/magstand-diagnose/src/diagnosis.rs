@@ -31,6 +31,14 @@ pub struct Baseline {
     pub calibration: Vec<Param>,
 }
 
+impl Baseline {
+    /// The calibrated stand constants the scenario leaves out (those of `calibration` named by
+    /// their scenario key, e.g. `motors.dead_zone`), without the regressors' coefficients.
+    pub fn stand_constants(&self) -> impl Iterator<Item = &Param> {
+        self.calibration.iter().filter(|p| p.name.contains('.'))
+    }
+}
+
 /// One accepted effect (or the "unexplained" remainder).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct EffectReport {
@@ -213,12 +221,18 @@ impl Diagnosis {
             "held-out RMSE x y z (µT): baseline {}\n",
             f3(self.baseline.holdout_rmse_ut)
         ));
+        let constants: Vec<&Param> = self.baseline.stand_constants().collect();
+        if !constants.is_empty() {
+            let shown: Vec<String> = constants.iter().map(|p| p.shown()).collect();
+            s.push_str(&format!("calibrated, not stated: {}\n", shown.join(", ")));
+            for p in constants {
+                if let Some(basis) = &p.basis {
+                    s.push_str(&format!("    {} rests on {basis}\n", p.name));
+                }
+            }
+        }
         for e in &self.effects {
-            let params: Vec<String> = e
-                .params
-                .iter()
-                .map(|p| format!("{} = {} {}", p.name, value_with_sd(p.value, p.sd), p.unit))
-                .collect();
+            let params: Vec<String> = e.params.iter().map(Param::shown).collect();
             let form = e
                 .form
                 .as_ref()

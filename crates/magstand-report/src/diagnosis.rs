@@ -48,6 +48,15 @@ fn f3(v: [f64; 3]) -> String {
     format!("{:.3} / {:.3} / {:.3}", v[0], v[1], v[2])
 }
 
+/// `name = value ± sd unit`, and what it rests on where it has a basis.
+fn with_basis(p: &magstand_diagnose::Param) -> String {
+    let basis = p
+        .basis
+        .as_ref()
+        .map_or(String::new(), |b| format!(" (rests on {b})"));
+    format!("{}{basis}", p.shown())
+}
+
 /// Builds the diagnosis section.
 pub fn section(d: &Diagnosis) -> Result<Section, ReportError> {
     let mut s = Section::new("Mismatch diagnosis");
@@ -79,6 +88,13 @@ pub fn section(d: &Diagnosis) -> Result<Section, ReportError> {
             l.motors
         ));
     }
+    let constants: Vec<String> = d.baseline.stand_constants().map(with_basis).collect();
+    if !constants.is_empty() {
+        s.text.push(format!(
+            "Stand constants the scenario does not state, calibrated from the recording: {}.",
+            constants.join("; ")
+        ));
+    }
     let rows: Vec<Vec<String>> = d
         .effects
         .iter()
@@ -91,18 +107,7 @@ pub fn section(d: &Diagnosis) -> Result<Section, ReportError> {
                 e.explanation.clone(),
                 e.params
                     .iter()
-                    .map(|p| {
-                        let basis = p
-                            .basis
-                            .as_ref()
-                            .map_or(String::new(), |b| format!(" (rests on {b})"));
-                        format!(
-                            "{} = {} {}{basis}",
-                            p.name,
-                            magstand_diagnose::diagnosis::value_with_sd(p.value, p.sd),
-                            p.unit
-                        )
-                    })
+                    .map(with_basis)
                     .collect::<Vec<_>>()
                     .join("; "),
                 format!(

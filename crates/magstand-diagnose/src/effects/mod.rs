@@ -151,6 +151,16 @@ impl Param {
         }
     }
 
+    /// `name = value ± sd unit`, as the text summary and the report show it.
+    pub fn shown(&self) -> String {
+        format!(
+            "{} = {} {}",
+            self.name,
+            crate::diagnosis::value_with_sd(self.value, self.sd),
+            self.unit
+        )
+    }
+
     /// This parameter, resting on `basis`: a constant of the model nobody stated.
     pub fn resting_on(self, basis: &str) -> Param {
         Param {
