@@ -156,21 +156,19 @@ fn separate_calibration(
             // searched, on a stand whose current follows each command at once) is a limit,
             // not an estimate: the chi-square's curvature there (0.33 s for a spin-up of 1 ms)
             // says nothing about it.
-            let searches = t.effect.search(ctx);
-            let edge = |i: usize| {
-                searches
-                    .get(i)
-                    .filter(|s| t.theta.get(i).is_some_and(|&v| s.at_bound(v)))
-                    .filter(|_| spread.is_none() && searches.len() == t.theta.len())
-            };
-            let params = std::mem::take(&mut report.params);
-            calibrated.extend(params.into_iter().enumerate().map(|(i, p)| {
+            let limit = spread
+                .is_none()
+                .then(|| super::forward::search_at_bound(ctx, t.effect, &t.theta))
+                .flatten();
+            calibrated.extend(report.params.into_iter().map(|p| {
+                // A report's searched parameters carry their search's name.
+                let at_limit = limit.as_ref().filter(|(s, ..)| s.name == p.name);
                 let p = widened(Param {
                     name: key.into(),
                     ..p
                 });
-                match edge(i) {
-                    Some(s) => Param { sd: None, ..p }.resting_on(&format!(
+                match at_limit {
+                    Some((s, ..)) => Param { sd: None, ..p }.resting_on(&format!(
                         "the edge of its search range, {} to {} {}: the data place it there or \
                          beyond, so it has no sd",
                         s.lo, s.hi, s.unit

@@ -718,7 +718,8 @@ fn at_edge(ctx: &Context, effect: &dyn Effect, theta: &[f64]) -> Option<String> 
 }
 
 /// The first of `effect`'s searched parameters `theta` at the edge of its range ([`at_edge`]):
-/// its search, its value and whether the edge is the lower one.
+/// its search, its value and whether the edge is the lower one. None for a calibration, whose
+/// value at an edge is reported as a limit ([`search_at_bound`]) rather than refused.
 fn edge_of(
     ctx: &Context,
     effect: &dyn Effect,
@@ -727,6 +728,17 @@ fn edge_of(
     if calibrates(effect, ctx, theta) {
         return None;
     }
+    search_at_bound(ctx, effect, theta)
+}
+
+/// The first of `effect`'s searched parameters `theta` that lies at the edge of its search
+/// range ([`Search::at_bound`](crate::optimize::Search::at_bound)): its search, its value and
+/// whether the edge is the lower one.
+pub(crate) fn search_at_bound(
+    ctx: &Context,
+    effect: &dyn Effect,
+    theta: &[f64],
+) -> Option<(crate::optimize::Search, f64, bool)> {
     effect
         .search(ctx)
         .into_iter()
