@@ -363,6 +363,27 @@ fn a_spin_up_at_the_edge_of_its_range_is_a_limit_without_an_sd() {
     );
 }
 
+/// Regression: a calibrated dead zone whose chi-square is about as flat over its whole search
+/// range as the noise allows was reported with the curvature's sd, wider than the range: on
+/// the generator's default stand, control seed 1, 0.060 +- 1.96 for a dead zone searched over
+/// 0 to 0.6. Such an sd only says the data do not determine the value there: it is now no
+/// sd, with that as its basis.
+#[test]
+fn a_dead_zone_the_data_do_not_determine_within_its_range_has_no_sd() {
+    use magstand_tests::independent::{Mode, run_case_on};
+    let o = run_case_on(&Stand::default(), &control(false), Mode::Unstated, 1);
+    let dz = calibrated(&o.diagnosis, "motors.dead_zone");
+    assert!(
+        (0.0..=0.6).contains(&dz.value)
+            && dz.sd.is_none()
+            && dz
+                .basis
+                .as_deref()
+                .is_some_and(|b| b.contains("0 to 0.6") && b.contains("wider than the range")),
+        "{dz:?}"
+    );
+}
+
 /// Regression: the dead zone calibrated on a stand nobody described was reported with the
 /// curvature of the chi-square at its optimum as its sd, under one shape of the current law.
 /// The law's shape is calibrated too, and not stated; a current that rises slowly from its

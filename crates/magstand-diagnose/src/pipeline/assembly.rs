@@ -146,6 +146,7 @@ fn separate_calibration(
             .trades_off_with_the_law_shape()
             .then(|| super::law_shape::law_shape_spread(ctx, terms, k, weights))
             .flatten();
+        let searches = t.effect.search(ctx);
         let widened = |p: Param| match spread {
             Some(range) => super::law_shape::with_law_shape_spread(ctx, p, range),
             None => p,
@@ -163,6 +164,7 @@ fn separate_calibration(
             calibrated.extend(report.params.into_iter().map(|p| {
                 // A report's searched parameters carry their search's name.
                 let at_limit = limit.as_ref().filter(|(s, ..)| s.name == p.name);
+                let search = searches.iter().find(|s| s.name == p.name);
                 let p = widened(Param {
                     name: key.into(),
                     ..p
@@ -173,12 +175,19 @@ fn separate_calibration(
                          beyond, so it has no sd",
                         s.lo, s.hi, s.unit
                     )),
-                    None => p,
+                    None => undetermined_within(search, p),
                 }
             }));
             continue;
         }
-        report.params = report.params.into_iter().map(widened).collect();
+        report.params = report
+            .params
+            .into_iter()
+            .map(|p| {
+                let search = searches.iter().find(|s| s.name == p.name);
+                undetermined_within(search, widened(p))
+            })
+            .collect();
         if let Some((key, stated)) = constant {
             if ctx.nominal.states(key) {
                 if let Some(fitted) = report.params.first() {
@@ -192,6 +201,28 @@ fn separate_calibration(
         findings.push(report);
     }
     (findings, calibrated)
+}
+
+/// `p`, searched by `search`, with no sd where its sd is wider than the whole search range:
+/// the chi-square is about as flat over the range as the noise allows (a dead zone that no
+/// command of the recording crosses in a way the fit can tell), so the curvature's sd (1.96
+/// for a dead zone searched over 0 to 0.6, on an effect-free control of the independent
+/// generator) states only that the data do not determine it there. Its basis says so.
+fn undetermined_within(search: Option<&crate::optimize::Search>, p: Param) -> Param {
+    let Some((s, sd)) = search.zip(p.sd) else {
+        return p;
+    };
+    if !(sd > s.hi - s.lo) {
+        return p;
+    }
+    let why = format!(
+        "a chi-square about as flat over its whole search range, {} to {} {}, as the noise \
+         allows: its curvature gives an sd of {sd:.3}, wider than the range, so the data do not \
+         determine it there and it has no sd",
+        s.lo, s.hi, s.unit
+    );
+    // It replaces any earlier basis: those say what the sd holds.
+    Param { sd: None, ..p }.resting_on(&why)
 }
 
 /// The model of `terms` as a model file that compensates recordings of the same stand.
@@ -478,6 +509,45 @@ fn series(rec: &Recording, holdout: &[bool], stages: &[(String, Vec<Vec3>)]) -> 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// An sd wider than the whole search range is dropped and the basis says why; one within
+    /// it, or a parameter no search holds, is left as it was.
+    #[test]
+    fn an_sd_wider_than_its_search_range_is_no_sd() {
+        let search = crate::optimize::Search {
+            name: "dead_zone",
+            unit: "command (0..1)",
+            lo: 0.0,
+            hi: 0.6,
+            log: false,
+            points: 31,
+        };
+        let with_sd = |sd| Param::new("dead_zone", 0.06, Some(sd), "command (0..1)");
+        let flat = undetermined_within(Some(&search), with_sd(1.96));
+        assert!(
+            flat.sd.is_none()
+                && flat.value == 0.06
+                && flat
+                    .basis
+                    .as_deref()
+                    .is_some_and(|b| b.contains("0 to 0.6") && b.contains("1.960")),
+            "{flat:?}"
+        );
+        for (search, p) in [
+            (Some(&search), with_sd(0.59)),
+            (None, with_sd(1.96)),
+            (
+                Some(&search),
+                Param::new("dead_zone", 0.06, None, "command (0..1)"),
+            ),
+        ] {
+            let kept = undetermined_within(search, p.clone());
+            assert!(
+                kept.sd == p.sd && kept.basis == p.basis,
+                "{p:?} became {kept:?}"
+            );
+        }
+    }
 
     /// Each held command's error along the timing spread is taken out, within its interval;
     /// what does not lie along the spread (an offset held over the whole command) stays, and a
