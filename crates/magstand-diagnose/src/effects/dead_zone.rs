@@ -14,6 +14,16 @@ nonlinear_params! {
     }
 }
 
+/// Where the dead zone is searched: every command a stand's ESCs could start at.
+pub(crate) const DEAD_ZONE_SEARCH: Search = Search {
+    name: "dead_zone",
+    unit: "command (0..1)",
+    lo: 0.0,
+    hi: 0.6,
+    log: false,
+    points: 31,
+};
+
 impl Effect for DeadZone {
     fn name(&self) -> &'static str {
         "dead_zone"
@@ -26,14 +36,7 @@ impl Effect for DeadZone {
         Start::NAMES
     }
     fn search(&self, _ctx: &Context) -> Vec<Search> {
-        vec![Search {
-            name: "dead_zone",
-            unit: "command (0..1)",
-            lo: 0.0,
-            hi: 0.6,
-            log: false,
-            points: 31,
-        }]
+        vec![DEAD_ZONE_SEARCH]
     }
     fn stand_constant(&self, ctx: &Context) -> Option<(&'static str, f64)> {
         Some(("motors.dead_zone", ctx.nominal.motors.dead_zone))

@@ -48,6 +48,8 @@ mod time_offset;
 
 pub use battery_sag::BatterySag;
 pub use current_lag::{CurrentLag, MAX_SPINUP_S};
+#[cfg(test)]
+pub(crate) use dead_zone::DEAD_ZONE_SEARCH;
 pub use dead_zone::DeadZone;
 pub use hysteresis::Hysteresis;
 pub use motor_asymmetry::MotorAsymmetry;

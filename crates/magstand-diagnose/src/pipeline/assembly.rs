@@ -514,14 +514,7 @@ mod tests {
     /// it, or a parameter no search holds, is left as it was.
     #[test]
     fn an_sd_wider_than_its_search_range_is_no_sd() {
-        let search = crate::optimize::Search {
-            name: "dead_zone",
-            unit: "command (0..1)",
-            lo: 0.0,
-            hi: 0.6,
-            log: false,
-            points: 31,
-        };
+        let search = crate::effects::DEAD_ZONE_SEARCH;
         let with_sd = |sd| Param::new("dead_zone", 0.06, Some(sd), "command (0..1)");
         let flat = undetermined_within(Some(&search), with_sd(1.96));
         assert!(
