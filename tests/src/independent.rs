@@ -182,11 +182,14 @@ pub fn cases() -> Vec<Case> {
 
 /// The generator's stand the suite runs on: [`Stand::default`], or with `STAND=held-out` in
 /// the environment [`Stand::held_out`] (a hexacopter at 50 Hz with other laws' constants,
-/// never looked at while the diagnosis was developed); `RATE_HZ` in the environment samples
+/// never looked at while the diagnosis was developed), with `STAND=octocopter`
+/// [`Stand::octocopter`] (a third stand, added after the other two had been looked at);
+/// `RATE_HZ` in the environment samples
 /// either at another rate (the recordings keep their number of rows).
 pub fn suite_stand() -> Stand {
     let mut stand = match std::env::var("STAND").as_deref() {
         Ok("held-out") => Stand::held_out(),
+        Ok("octocopter") => Stand::octocopter(),
         _ => Stand::default(),
     };
     if let Some(rate_hz) = std::env::var("RATE_HZ")

@@ -160,6 +160,34 @@ impl Stand {
 }
 
 impl Stand {
+    /// A third stand, added in the thirty-second session after the diagnosis had been
+    /// developed on the other two, and run as it was first written: an octocopter on a 6S
+    /// bench at 120 Hz, with a dead zone, current law, wiring, noise and pack unlike both
+    /// (`STAND=octocopter`).
+    pub fn octocopter() -> Self {
+        Stand {
+            motors: 8,
+            dead_zone: 0.10,
+            idle_a: 0.6,
+            full_a: 8.0,
+            exponent: 1.5,
+            gains_ut_per_a: vec![[0.28, 0.40, -0.62]; 8],
+            quadratic_ut_per_a2: [0.0004, -0.0002, 0.0006],
+            background_ut: [24.0, 2.5, -41.0],
+            supply: Supply::Bench { voltage_v: 22.2 },
+            noise_ut: (0.06, 0.45),
+            rate_hz: 120.0,
+            differential: 0.05,
+            battery: Supply::Battery {
+                cells: 6,
+                capacity_ah: 3.0,
+                resistance_ohm: 0.05,
+            },
+        }
+    }
+}
+
+impl Stand {
     /// The stand as a magstand scenario states it: the constants magstand's scenario has keys
     /// for (motor count, dead zone, no spin-up lag to speak of, supply, sampling rate). The
     /// current law, the wiring and the noise have no such keys: they stay unknown. This stand's
