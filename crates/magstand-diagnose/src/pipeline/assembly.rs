@@ -157,10 +157,11 @@ fn separate_calibration(
             // searched, on a stand whose current follows each command at once) is a limit,
             // not an estimate: the chi-square's curvature there (0.33 s for a spin-up of 1 ms)
             // says nothing about it.
-            let limit = spread
-                .is_none()
-                .then(|| super::forward::search_at_bound(ctx, t.effect, &t.theta))
-                .flatten();
+            // So is one that trades off with the law's shape where every law of fewer powers
+            // of speed places it at the same edge (a spread of no width: the third generator
+            // stand's dead zone at 0, reported as 0 with no sd and the law's shape as basis).
+            let limit = super::forward::search_at_bound(ctx, t.effect, &t.theta)
+                .filter(|_| spread.is_none_or(|(lo, hi)| lo == hi));
             calibrated.extend(report.params.into_iter().map(|p| {
                 // A report's searched parameters carry their search's name.
                 let at_limit = limit.as_ref().filter(|(s, ..)| s.name == p.name);

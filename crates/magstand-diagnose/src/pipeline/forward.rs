@@ -90,6 +90,9 @@ fn try_candidate(
     significance: f64,
 ) -> Candidate {
     let held = try_candidate_from(ctx, terms, effect, weights, before, None, None);
+    if let Some(refitted) = with_calibration_refitted(ctx, terms, effect, weights, before) {
+        return better_fit(held, refitted);
+    }
     let Some(lag) = slow_lag_beside_delay(ctx, terms, effect) else {
         return held;
     };
@@ -104,11 +107,64 @@ fn try_candidate(
         return held;
     }
     let refitted = try_candidate_from(ctx, terms, effect, weights, before, None, Some(lag));
+    better_fit(held, refitted)
+}
+
+/// Of two fits of the same candidate, the one of lower chi-square (`held` where they tie or
+/// `refitted` could not be fitted).
+fn better_fit(held: Candidate, refitted: Candidate) -> Candidate {
     let chi2 = |c: &Candidate| c.fitted.as_ref().map(|(_, _, f)| f.chi2_fit);
     match (chi2(&held), chi2(&refitted)) {
         (Some(h), Some(r)) if r < h => refitted,
         _ => held,
     }
+}
+
+/// A candidate that changes the currents and has no nonlinear parameter of its own (a battery
+/// followed through the logged `bat_v`), fitted again beside a calibrated dead zone refitted
+/// with it: near where the dead zone is, or over its whole range where its optimum moved
+/// beyond a grid step. None where the model holds no such calibration, or the candidate
+/// searches parameters of its own (the refit at each of its points would multiply the
+/// search's cost).
+///
+/// A calibration is part of the baseline a finding is measured against, and the dead zone
+/// trades off with the current law: calibrated before the candidate was in the model, it
+/// took part of the candidate's misfit, and with it held the candidate's gain is not the one
+/// it has once the baseline is calibrated beside it. On the third generator stand, with a
+/// 0.5 s current lag and a battery logged through `bat_v`, the dead zone calibrated
+/// at 0.147 (0.10 in the generator) held the battery's held-out gain negative, and its misfit
+/// was named `unexplained`.
+fn with_calibration_refitted(
+    ctx: &Context,
+    terms: &[Term],
+    effect: &dyn Effect,
+    weights: &Weights,
+    before: &[Vec3],
+) -> Option<Candidate> {
+    if !(effect.changes_the_currents(ctx) && effect.search(ctx).is_empty()) {
+        return None;
+    }
+    let k = terms.iter().position(|t| {
+        t.effect.trades_off_with_the_law_shape() && calibrates(t.effect, ctx, &t.theta)
+    })?;
+    let searches = terms[k].effect.search(ctx);
+    let base = as_refs(terms);
+    let chi2 = |theta: &[f64]| {
+        let mut refs = base.clone();
+        refs[k].1 = theta;
+        refs.push((effect, &[]));
+        chi2_of(ctx, &refs, ctx.command_lead, weights)
+    };
+    let found = crate::optimize::minimize_near_or_beyond(&searches, &terms[k].theta, chi2)?;
+    if found.theta == terms[k].theta {
+        return None;
+    }
+    let mut refitted = terms.to_vec();
+    refitted[k].theta = found.theta;
+    refitted[k].theta_sd = found.sd;
+    Some(try_candidate_from(
+        ctx, &refitted, effect, weights, before, None, None,
+    ))
 }
 
 /// [`try_candidate`], its search started `from` these parameters where given (a richer form
