@@ -157,9 +157,7 @@ impl Stand {
             },
         }
     }
-}
 
-impl Stand {
     /// A third stand, added in the thirty-second session after the diagnosis had been
     /// developed on the other two, and run as it was first written: an octocopter on a 6S
     /// bench at 120 Hz, with a dead zone, current law, wiring, noise and pack unlike both
