@@ -3,9 +3,9 @@
 //! `cargo run --release -p magstand-tests --bin independent-suite -- [SEEDS [LABEL]]`
 //! (default 2 seeds, every case, both modes; LABEL keeps the cases whose label contains it,
 //! and LABEL `fit` runs only the fit comparison, LABEL `battery-variants` the battery without
-//! `bat_v` on [`battery_variants`]; FIRST_SEED in the environment starts
-//! elsewhere; STAND=held-out runs the generator's second stand, `Stand::held_out`, STAND=octocopter its third, `Stand::octocopter`, and RATE_HZ samples at
-//! another rate). With
+//! `bat_v` on [`battery_variants`]; FIRST_SEED in the environment starts elsewhere;
+//! STAND=held-out runs the generator's second stand, `Stand::held_out`, STAND=octocopter its
+//! third, `Stand::octocopter`, and RATE_HZ samples at another rate). With
 //! WRITE_RECORDINGS=DIR it only writes each case's recordings there as CSV
 //! (`NN-label-seedS.csv`, the case's index in the suite), for timing the `magstand` command
 //! on them.
