@@ -1,9 +1,11 @@
 //! Replay speed: what a diagnosis pays for each fit of a battery whose voltage is not logged
 //! (the motors coupled through the pack's sag, stepped together in substeps). 25,000 rows at
 //! 50 Hz of a hexacopter on a battery: a stair with small attitude-like differences between
-//! the motors, and the same stair with one command for all of them.
+//! the motors, and the same stair with one command for all of them; and the first on a bench
+//! supply, where the motors are uncoupled (the replay most of a diagnosis's fits make).
 use criterion::{Criterion, criterion_group, criterion_main};
 use magstand_sim::Scenario;
+use magstand_sim::battery::SupplyParams;
 use magstand_sim::replay::{Logged, replay_logged};
 
 fn battery_without_bat_v(c: &mut Criterion) {
@@ -36,6 +38,14 @@ fn battery_without_bat_v(c: &mut Criterion) {
         })
         .collect();
     let one = vec![thr[0].clone(); 6];
+    // The same stand on a bench without source resistance: the motors uncoupled, each stepped
+    // once per part of an interval (what most of a diagnosis's fits replay).
+    let mut bench = s.clone();
+    bench.supply = SupplyParams::Bench {
+        voltage_v: 12.0,
+        source_resistance_ohm: 0.0,
+        avionics_current_a: 0.3,
+    };
     let mut g = c.benchmark_group("replay");
     g.sample_size(20);
     g.bench_function("hexa_25k_rows_battery_coupled", |b| {
@@ -43,6 +53,9 @@ fn battery_without_bat_v(c: &mut Criterion) {
     });
     g.bench_function("hexa_25k_rows_battery_coupled_one_command", |b| {
         b.iter(|| replay_logged(&s, &t_s, &one, Logged::default(), 1.0))
+    });
+    g.bench_function("hexa_25k_rows_bench_uncoupled", |b| {
+        b.iter(|| replay_logged(&bench, &t_s, &thr, Logged::default(), 0.5))
     });
     g.finish();
 }

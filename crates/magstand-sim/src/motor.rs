@@ -146,6 +146,14 @@ impl MotorParams {
         }
     }
 
+    /// Whether the ESC drives the motor at `command`: `duty(command) > 0`, without its
+    /// division. For a dead zone below 1 (the checked range ends at 0.95) a command above it
+    /// leaves a positive difference (IEEE subtraction of two different numbers is never zero)
+    /// that a divisor of at most 1 cannot round to zero; a NaN command is driven in both.
+    pub fn drives(&self, command: f64) -> bool {
+        !(command <= self.dead_zone)
+    }
+
     fn kq(&self, motor: usize) -> f64 {
         self.torque_coeff_nms2 * self.load_scale.get(motor).copied().unwrap_or(1.0)
     }
@@ -370,6 +378,14 @@ impl MotorState {
         );
     }
 
+    /// Advances the speed alone toward `target_rad_s`: [`MotorState::step_toward`] for a part
+    /// of a step after which another part follows at once, where the motor's current has no
+    /// lag (its current is then the current of the speed at the end, and the current computed
+    /// here would be overwritten unread).
+    pub fn step_speed_toward(&mut self, target_rad_s: f64, factors: StepFactors) {
+        self.speed_rad_s += (target_rad_s - self.speed_rad_s) * factors.spinup;
+    }
+
     /// Advances speed and current toward a steady speed `target_rad_s` already worked out for
     /// the command (`driven` while the ESC drives the motor), with lag factors `factors`: what
     /// [`MotorState::step_electrical_with`] does once it has the target, for a caller that
@@ -383,7 +399,7 @@ impl MotorState {
         driven: bool,
         factors: StepFactors,
     ) {
-        self.speed_rad_s += (target_rad_s - self.speed_rad_s) * factors.spinup;
+        self.step_speed_toward(target_rad_s, factors);
         let of_speed_a = c.current(p, self.speed_rad_s, driven);
         // Without a lag, the current of the speed itself (the same bits as before the lag
         // existed, which `x + (y - x) * 1` is not always).
@@ -487,6 +503,46 @@ mod tests {
         plain.step(&d, 0, 0.8, 12.0, dt);
         let of_speed = d.current(0, plain.speed_rad_s, true);
         assert_eq!(plain.current_a.to_bits(), of_speed.to_bits());
+    }
+
+    /// `drives` is `duty > 0` over the checked dead zones, at and around each, and for
+    /// commands of every size (a replay reads it for every motor at every row).
+    #[test]
+    fn drives_is_a_positive_duty_without_its_division() {
+        let commands = [
+            0.0,
+            -0.0,
+            1e-320,
+            5e-324,
+            1e-300,
+            0.1,
+            0.5,
+            0.999,
+            1.0,
+            1.5,
+            -0.2,
+            1e300,
+            f64::NAN,
+        ];
+        for dead_zone in [0.0, 1e-12, 0.06, 0.12, 0.37, 0.6, 0.95] {
+            let p = MotorParams {
+                dead_zone,
+                ..MotorParams::default()
+            };
+            let near = [
+                dead_zone,
+                f64::from_bits(dead_zone.to_bits() + 1),
+                f64::from_bits(dead_zone.to_bits().saturating_sub(1)),
+            ];
+            for command in commands.into_iter().chain(near) {
+                assert_eq!(
+                    p.drives(command),
+                    p.duty(command) > 0.0,
+                    "dead zone {dead_zone:e}, command {command:e}: duty {}",
+                    p.duty(command)
+                );
+            }
+        }
     }
 
     #[test]

@@ -706,19 +706,26 @@ impl<C: Fn(usize) -> f64> Motor<'_, C> {
         alphas: &[StepFactors; 2],
         voltage_v: f64,
     ) {
-        for (&(row, len), &alpha) in parts.iter().zip(alphas) {
+        // Without a lag of the current, the current of a part followed by another is
+        // overwritten unread: only the last part's is worked out (a division a part).
+        let current_of_last_only = self.params.current_lag_s == 0.0 && parts[1].1 > 0.0;
+        for (k, (&(row, len), &alpha)) in parts.iter().zip(alphas).enumerate() {
             if len > 0.0 {
                 let cmd = (self.command)(row);
                 if !target.seen(cmd, voltage_v) {
                     *target = TargetSpeed::new(self.params, self.constants, cmd, voltage_v);
                 }
-                st.step_toward(
-                    self.params,
-                    self.constants,
-                    target.speed_rad_s,
-                    target.driven,
-                    alpha,
-                );
+                if k == 0 && current_of_last_only {
+                    st.step_speed_toward(target.speed_rad_s, alpha);
+                } else {
+                    st.step_toward(
+                        self.params,
+                        self.constants,
+                        target.speed_rad_s,
+                        target.driven,
+                        alpha,
+                    );
+                }
                 *acting = row;
             }
         }
@@ -735,7 +742,7 @@ fn push_motor_row(
     [speed, driven, armed, current_a]: [&mut Vec<f64>; 4],
 ) {
     speed.push(st.speed_rad_s / full_speed);
-    driven.push(if p.duty(acting) > 0.0 { 1.0 } else { 0.0 });
+    driven.push(if p.drives(acting) { 1.0 } else { 0.0 });
     armed.push(if acting > 0.0 { 1.0 } else { 0.0 });
     current_a.push(st.current_a);
 }
