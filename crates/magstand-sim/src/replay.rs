@@ -949,6 +949,62 @@ mod tests {
     use super::*;
     use crate::simulate;
 
+    /// A motor stepped through both parts of an interval (the command switching within it)
+    /// works out its current for the last part alone where the current has no lag: the state
+    /// is the same bits as each part stepped in full, whose first current is overwritten
+    /// unread. With a lag both currents count, and both are worked out.
+    #[test]
+    fn the_current_of_the_last_part_alone_is_the_same_bits() {
+        for current_lag_s in [0.0, 0.05] {
+            let p = MotorParams {
+                current_lag_s,
+                ..MotorParams::default()
+            };
+            let c = p.constants(0);
+            for thr in [[0.2, 0.7], [0.5, 0.5], [0.9, 0.1], [0.37, 0.38], [0.0, 0.6]] {
+                let motor = Motor {
+                    params: &p,
+                    constants: &c,
+                    command: |row: usize| thr[row],
+                };
+                let parts = split_at_switch(1, 0.0, 0.02, 0.008);
+                let alphas = lag_factors(&parts, &mut MotorLags::new(&p));
+                let start = MotorState {
+                    speed_rad_s: 300.0,
+                    current_a: 2.0,
+                    ..MotorState::default()
+                };
+                let (mut stepped, mut target, mut acting) = (start, TargetSpeed::NONE, 0);
+                motor.step(
+                    &mut stepped,
+                    &mut target,
+                    &mut acting,
+                    &parts,
+                    &alphas,
+                    12.0,
+                );
+                let mut full = start;
+                for (&(row, _), &alpha) in parts.iter().zip(&alphas) {
+                    full.step_electrical_with(&p, &c, thr[row], 12.0, alpha);
+                }
+                for (what, a, b) in [
+                    ("speed", stepped.speed_rad_s, full.speed_rad_s),
+                    ("current", stepped.current_a, full.current_a),
+                ] {
+                    assert_eq!(
+                        a.to_bits(),
+                        b.to_bits(),
+                        "lag {current_lag_s} s, commands {thr:?}: {what} {a} stepped, {b} in full"
+                    );
+                }
+                assert_eq!(
+                    acting, 1,
+                    "commands {thr:?}: the second part's command acts last"
+                );
+            }
+        }
+    }
+
     const STAIR: &str = r#"
         name = "replay check"
         physics_hz = 1000.0
