@@ -83,6 +83,9 @@ fn substeps_into(out: &mut Vec<(f64, f64, f64)>, dt: f64, switch_s: f64, settle_
 struct TargetSpeed {
     command_bits: u64,
     voltage_bits: u64,
+    /// The command's PWM duty, kept while the command holds and the voltage moves (a
+    /// battery's sag moves it at every substep).
+    duty: f64,
     speed_rad_s: f64,
     driven: bool,
 }
@@ -92,15 +95,23 @@ impl TargetSpeed {
     const NONE: TargetSpeed = TargetSpeed {
         command_bits: u64::MAX,
         voltage_bits: u64::MAX,
+        duty: 0.0,
         speed_rad_s: 0.0,
         driven: false,
     };
 
-    fn new(p: &MotorParams, c: &MotorConstants, command: f64, voltage_v: f64) -> Self {
-        let duty = p.duty(command);
+    /// The target for `command` at `voltage_v`, with this one's duty where the command is the
+    /// same (the same bits as working it out again).
+    fn moved_to(&self, p: &MotorParams, c: &MotorConstants, command: f64, voltage_v: f64) -> Self {
+        let duty = if self.command_bits == command.to_bits() {
+            self.duty
+        } else {
+            p.duty(command)
+        };
         Self {
             command_bits: command.to_bits(),
             voltage_bits: voltage_v.to_bits(),
+            duty,
             speed_rad_s: c.steady_speed(p, duty, voltage_v),
             driven: duty > 0.0,
         }
@@ -713,7 +724,7 @@ impl<C: Fn(usize) -> f64> Motor<'_, C> {
             if len > 0.0 {
                 let cmd = (self.command)(row);
                 if !target.seen(cmd, voltage_v) {
-                    *target = TargetSpeed::new(self.params, self.constants, cmd, voltage_v);
+                    *target = target.moved_to(self.params, self.constants, cmd, voltage_v);
                 }
                 if k == 0 && current_of_last_only {
                     st.step_speed_toward(target.speed_rad_s, alpha);
