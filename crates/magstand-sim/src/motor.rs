@@ -139,15 +139,15 @@ impl MotorParams {
 
     /// PWM duty for a command: 0 in the dead zone, then linear to 1 at full command.
     pub fn duty(&self, command: f64) -> f64 {
-        if command <= self.dead_zone {
-            0.0
-        } else {
+        if self.drives(command) {
             ((command - self.dead_zone) / (1.0 - self.dead_zone)).min(1.0)
+        } else {
+            0.0
         }
     }
 
-    /// Whether the ESC drives the motor at `command`: `duty(command) > 0`, without its
-    /// division. For a dead zone below 1 (the checked range ends at 0.95) a command above it
+    /// Whether the ESC drives the motor at `command` (above the dead zone, the one place
+    /// that says where it ends): `duty(command) > 0`, without its division. For a dead zone below 1 (the checked range ends at 0.95) a command above it
     /// leaves a positive difference (IEEE subtraction of two different numbers is never zero)
     /// that a divisor of at most 1 cannot round to zero; a NaN command is driven in both.
     pub fn drives(&self, command: f64) -> bool {
