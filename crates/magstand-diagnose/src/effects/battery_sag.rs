@@ -3,7 +3,7 @@ use magstand_sim::battery::{SupplyParams, lipo_cell_ocv_v};
 use magstand_sim::replay::{Trace, replay};
 
 use super::{Context, Effect, EffectFit, Param};
-use crate::fit::STRAIGHT_DISCHARGE;
+use crate::fit::{ARMED_IN_DEAD_ZONE, STRAIGHT_DISCHARGE};
 use crate::optimize::{Search, minimize};
 
 /// The supply is a battery whose voltage falls with the charge drawn and under load.
@@ -327,6 +327,8 @@ impl Effect for BatterySag {
         // field at a command then moves by the change times a combination of the current law's
         // own columns (a law in powers of speed holds the current times its derivative), so
         // each of them times the change enters with a free gain.
+        let law = driven_law(law);
+        let law = law.as_slice();
         let Some(v) = ctx.rec.bat_v.as_deref() else {
             return match (self.form, self.battery(theta)) {
                 (Form::FreeDischarge { order, .. }, Some(b)) => {
@@ -511,6 +513,19 @@ fn pack_line(rows: impl Iterator<Item = (f64, f64, f64)> + Clone) -> Option<([f6
         .chain(&sd)
         .all(|x| x.is_finite())
         .then_some((value, sd))
+}
+
+/// The current law's columns of the driven motors: all but [`ARMED_IN_DEAD_ZONE`]. A motor
+/// armed within its dead zone is not driven; what it draws (the ESC holding it at idle) does
+/// not follow the pack's voltage through the motor as a driven one's current does. That
+/// column's count also hangs on the dead zone, which is itself often calibrated within a wide
+/// sd: times the supply's change it gave the fit free gains on the few rows between the stand's
+/// dead zone and the calibrated one, and no physics behind them.
+fn driven_law<'a>(law: &[(&'a str, &'a [f64])]) -> Vec<(&'a str, &'a [f64])> {
+    law.iter()
+        .filter(|(name, _)| *name != ARMED_IN_DEAD_ZONE)
+        .copied()
+        .collect()
 }
 
 /// Without `bat_v`, the voltage's course over the run is the candidate's own, and two things
