@@ -326,7 +326,8 @@ impl Effect for BatterySag {
         // current: neither is stated. To first order in the voltage's relative change, the
         // field at a command then moves by the change times a combination of the current law's
         // own columns (a law in powers of speed holds the current times its derivative), so
-        // each of them times the change enters with a free gain.
+        // each of them times the change enters with a free gain: the driven motors' columns
+        // ([`driven_law`]), with `bat_v` and without it.
         let law = driven_law(law);
         let law = law.as_slice();
         let Some(v) = ctx.rec.bat_v.as_deref() else {
