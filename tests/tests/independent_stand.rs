@@ -1371,17 +1371,19 @@ fn a_battery_logged_through_bat_v_is_judged_beside_the_dead_zone_calibrated_with
 
 /// The withdrawal of a finding that a later term's refinement moves to the edge of its range,
 /// on a recording magstand did not make: the third stand's battery and 0.5 s lag (`bat_v`
-/// logged, seed 1) with a scenario that states the motor count and a dead zone of 0.147 (the
+/// logged, seed 2) with a scenario that states the motor count and a dead zone of 0.147 (the
 /// generator's is 0.10) and nothing else. The stated dead zone is rejected and named first;
 /// once the battery is named, the dead zone refitted beside it runs to 0, the edge of its
 /// range, where the data do not determine it: it is withdrawn with a warning and is not in
-/// the verdict.
+/// the verdict. Seed 2: on seed 1, since the battery's columns hold the driven motors' law
+/// only, the dead zone is never named (the same verdict, without the withdrawal this test is
+/// about).
 #[test]
 fn a_stated_constant_refined_to_the_edge_of_its_range_is_withdrawn() {
     use magstand_tests::independent::recording_on;
     let stand = Stand::octocopter();
     let case = suite_case("battery sag + current lag");
-    let (rec, _) = recording_on(&stand, &case, 1);
+    let (rec, _) = recording_on(&stand, &case, 2);
     let stated = magstand_sim::Scenario::from_toml_str(
         "name = \"dead zone stated\"\n[program]\nkind = \"random_steps\"\ncount = 10\n\
          dwell_min_s = 1.0\ndwell_max_s = 2.0\n[motors]\ncount = 8\ndead_zone = 0.147\n",
