@@ -147,9 +147,10 @@ impl MotorParams {
     }
 
     /// Whether the ESC drives the motor at `command` (above the dead zone, the one place
-    /// that says where it ends): `duty(command) > 0`, without its division. For a dead zone below 1 (the checked range ends at 0.95) a command above it
-    /// leaves a positive difference (IEEE subtraction of two different numbers is never zero)
-    /// that a divisor of at most 1 cannot round to zero; a NaN command is driven in both.
+    /// that says where it ends): `duty(command) > 0`, without its division. For a dead zone
+    /// below 1 (the checked range ends at 0.95) a command above it leaves a positive
+    /// difference (IEEE subtraction of two different numbers is never zero) that a divisor of
+    /// at most 1 cannot round to zero; a NaN command is driven in both.
     pub fn drives(&self, command: f64) -> bool {
         !(command <= self.dead_zone)
     }

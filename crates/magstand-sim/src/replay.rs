@@ -87,7 +87,6 @@ struct TargetSpeed {
     /// battery's sag moves it at every substep).
     duty: f64,
     speed_rad_s: f64,
-    driven: bool,
 }
 
 impl TargetSpeed {
@@ -97,7 +96,6 @@ impl TargetSpeed {
         voltage_bits: u64::MAX,
         duty: 0.0,
         speed_rad_s: 0.0,
-        driven: false,
     };
 
     /// The target for `command` at `voltage_v`, with this one's duty where the command is the
@@ -113,8 +111,12 @@ impl TargetSpeed {
             voltage_bits: voltage_v.to_bits(),
             duty,
             speed_rad_s: c.steady_speed(p, duty, voltage_v),
-            driven: duty > 0.0,
         }
+    }
+
+    /// Whether the ESC drives the motor at this target's command: a positive duty.
+    fn driven(&self) -> bool {
+        self.duty > 0.0
     }
 
     /// Whether this is the target for `command` at `voltage_v`.
@@ -733,7 +735,7 @@ impl<C: Fn(usize) -> f64> Motor<'_, C> {
                         self.params,
                         self.constants,
                         target.speed_rad_s,
-                        target.driven,
+                        target.driven(),
                         alpha,
                     );
                 }
