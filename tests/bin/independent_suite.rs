@@ -8,7 +8,9 @@
 //! third, `Stand::octocopter`, and RATE_HZ samples at another rate). With
 //! WRITE_RECORDINGS=DIR it only writes each case's recordings there as CSV
 //! (`NN-label-seedS.csv`, the case's index in the suite), for timing the `magstand` command
-//! on them.
+//! on them, each beside the generator's noise-free disturbance at its rows (`.truth`, columns
+//! `dist_x_ut,dist_y_ut,dist_z_ut`, as `compensate --out` writes its prediction): a model's
+//! error against the truth shows where in time it misses, which the noise hides.
 use magstand_tests::SuiteArgs;
 use magstand_tests::independent::{
     Mode, battery_variants, cases, fit_accuracy, markdown, recording, run_case, run_case_on,
@@ -28,10 +30,22 @@ fn main() {
                 .map(|c| if c.is_ascii_alphanumeric() { c } else { '-' })
                 .collect();
             for seed in seeds.clone() {
-                let (rec, _) = recording(&case, seed);
+                let (rec, truth) = recording(&case, seed);
                 let path = dir.join(format!("{k:02}-{slug}-seed{seed}.csv"));
-                if let Err(e) = magstand_core::recording_csv::write(&rec, &path) {
-                    eprintln!("error: {}: {e}", path.display());
+                let truth_csv = std::iter::once("dist_x_ut,dist_y_ut,dist_z_ut".to_string())
+                    .chain(truth.iter().map(|v| format!("{},{},{}", v[0], v[1], v[2])))
+                    .collect::<Vec<_>>()
+                    .join("\n")
+                    + "\n";
+                let truth_path = path.with_extension("truth");
+                let written = magstand_core::recording_csv::write(&rec, &path)
+                    .map_err(|e| format!("{}: {e}", path.display()))
+                    .and_then(|()| {
+                        std::fs::write(&truth_path, truth_csv)
+                            .map_err(|e| format!("{}: {e}", truth_path.display()))
+                    });
+                if let Err(e) = written {
+                    eprintln!("error: {e}");
                     std::process::exit(1);
                 }
                 println!("{}", path.display());

@@ -1454,3 +1454,50 @@ fn a_battery_through_bat_v_moves_the_driven_motors_current_only() {
         "the battery's columns are the driven motors' law times the change: {columns:?}"
     );
 }
+
+/// The suite's battery and 0.5 s current lag with `bat_v` logged, seed 4 of the default
+/// stand, diagnosed as `mode` says: the verdict, and the lag's time constant within 2 % of the
+/// generator's.
+fn battery_and_lag_named_with_the_lag_where_it_is(mode: magstand_tests::independent::Mode) {
+    use magstand_tests::independent::run_case_on;
+    let o = run_case_on(
+        &Stand::default(),
+        &suite_case("battery sag + current lag"),
+        mode,
+        4,
+    );
+    assert_named_exactly(
+        &o,
+        &["battery_sag", "current_lag"],
+        &format!("default stand, battery and lag with bat_v logged, seed 4, {mode:?}"),
+    );
+    let tau = named_param(&o.diagnosis, "current_lag", "spinup_tau_s").expect("the lag");
+    assert!(
+        (tau.value - 0.5).abs() < 0.01,
+        "{mode:?}: the lag's time constant is {} ± {:?} s, the generator's 0.5 s",
+        tau.value,
+        tau.sd
+    );
+}
+
+/// Regression: the replay held a logged voltage over each interval at the row before it, so
+/// behind a lag of the field (replayed without spin-up) each row's speed was the steady speed
+/// at the previous row's voltage. A battery's sag moves the voltage at every step: the
+/// generator's 0.5 s lag was calibrated at 0.484 s, the field's response off by up to 0.2 µT
+/// for a second after each step, and the misfit named `unexplained` (seed 4, unstated). The
+/// voltage now runs in a straight line between the rows and the motors follow it.
+#[test]
+fn a_battery_and_a_lag_are_named_alone_where_the_motors_follow_the_logged_voltage() {
+    battery_and_lag_named_with_the_lag_where_it_is(magstand_tests::independent::Mode::Unstated);
+}
+
+/// Regression: with the stand stated, the same recording's lag was refined after the battery's
+/// acceptance under the weights of the model before it, whose residual held the battery's sag
+/// as noise at full load; those rows fix the lag's time constant. Under the weights of its own
+/// model 0.495 s fitted better than the 0.481 s it kept, by 4,000 in chi-square, and the misfit
+/// was named `unexplained`. After an acceptance the terms are now refined again under the
+/// weights of the model they make.
+#[test]
+fn a_battery_and_a_lag_are_named_alone_where_the_lag_is_refined_under_its_models_weights() {
+    battery_and_lag_named_with_the_lag_where_it_is(magstand_tests::independent::Mode::Stated);
+}

@@ -401,6 +401,49 @@ impl MotorState {
         factors: StepFactors,
     ) {
         self.step_speed_toward(target_rad_s, factors);
+        self.follow_current(p, c, driven, factors);
+    }
+
+    /// Advances the speed alone along a target that moves in a straight line from `from_rad_s`
+    /// to `to_rad_s` over the step (a logged voltage between two rows), `ramp` being the
+    /// step's [`ramp_factor`](crate::lag::ramp_factor): the exact step of the spin-up for such a
+    /// target, where [`MotorState::step_speed_toward`] holds one.
+    pub fn step_speed_along(
+        &mut self,
+        from_rad_s: f64,
+        to_rad_s: f64,
+        factors: StepFactors,
+        ramp: f64,
+    ) {
+        self.speed_rad_s += (from_rad_s - self.speed_rad_s) * factors.spinup;
+        self.speed_rad_s += (to_rad_s - from_rad_s) * ramp;
+    }
+
+    /// [`MotorState::step_toward`] along a moving target ([`MotorState::step_speed_along`]).
+    #[allow(clippy::too_many_arguments)]
+    pub fn step_along(
+        &mut self,
+        p: &MotorParams,
+        c: &MotorConstants,
+        from_rad_s: f64,
+        to_rad_s: f64,
+        driven: bool,
+        factors: StepFactors,
+        ramp: f64,
+    ) {
+        self.step_speed_along(from_rad_s, to_rad_s, factors, ramp);
+        self.follow_current(p, c, driven, factors);
+    }
+
+    /// Advances the current toward the current of the speed reached (`driven` while the ESC
+    /// drives the motor), held over the step.
+    fn follow_current(
+        &mut self,
+        p: &MotorParams,
+        c: &MotorConstants,
+        driven: bool,
+        factors: StepFactors,
+    ) {
         let of_speed_a = c.current(p, self.speed_rad_s, driven);
         // Without a lag, the current of the speed itself (the same bits as before the lag
         // existed, which `x + (y - x) * 1` is not always).

@@ -17,7 +17,9 @@ use super::gain::{
     block_improvements, block_improvements_on, gain_p_value, holdout_rmse, mean_gain, standardized,
     whiteness,
 };
-use super::refine::{along_the_valley, lag_refitted, refine, slow_lag_beside_delay};
+use super::refine::{
+    along_the_valley, lag_refitted, refine, refine_under_own_weights, slow_lag_beside_delay,
+};
 
 /// The calibrated baseline the search starts from.
 pub(crate) struct BaselineFit {
@@ -825,6 +827,25 @@ fn refined_to_edge(ctx: &Context, term: &Term) -> Option<String> {
         .map(|why| format!("refitted beside the other terms, {why}"))
 }
 
+/// `model` (of `terms`, fitted with the weights the terms were refined under) with the terms
+/// refined again under its own weights ([`refine_under_own_weights`]) and fitted again, where
+/// that moves them and leaves none at the edge of its range; else `model` as it is.
+fn refitted_under_own_weights(
+    ctx: &mut Context,
+    terms: &mut Vec<Term>,
+    model: ModelFit,
+) -> Result<ModelFit, DiagnoseError> {
+    let (before, lead) = (terms.clone(), ctx.command_lead);
+    if !refine_under_own_weights(ctx, terms, &model.weights) {
+        return Ok(model);
+    }
+    if terms.iter().any(|t| refused_at_edge(ctx, t)) {
+        (*terms, ctx.command_lead) = (before, lead);
+        return Ok(model);
+    }
+    fit_model(ctx, terms, Some(&model.weights))
+}
+
 /// The held-out RMSE before and after each of `terms` from `from` on (its report) and the
 /// residual after it (its stage), measured on the model as it stands: each with the terms
 /// before it at their refined parameters, without it and with it. `reports` and `stages` run
@@ -1140,7 +1161,8 @@ pub(crate) fn forward_search<'e>(
             // again on the model as it now stands, each with and without its finding.
             restate_gains(ctx, &terms, w, &mut reports, &mut stages[1..], restate_from);
         }
-        latest = Some(fit_model(ctx, &terms, Some(w))?);
+        let fitted = fit_model(ctx, &terms, Some(w))?;
+        latest = Some(refitted_under_own_weights(ctx, &mut terms, fitted)?);
         richer_fits = RicherFits::default();
         rounds.push(round);
     }
