@@ -367,19 +367,22 @@ fn a_spin_up_at_the_edge_of_its_range_is_a_limit_without_an_sd() {
 /// range as the noise allows was reported with the curvature's sd, wider than the range: on
 /// the generator's default stand, control seed 1, 0.060 +- 1.96 for a dead zone searched over
 /// 0 to 0.6. Such an sd only says the data do not determine the value there: it is now no
-/// sd, with that as its basis.
+/// sd, with that as its basis (unit test `undetermined_within`'s). Since the thirty-fifth
+/// session refines the terms again under their model's own weights, the same control's dead
+/// zone is determined (0.128 +- 0.08 under the laws' shapes; the generator's is 0.12): the
+/// report holds either way, an sd within the range or none with the reason.
 #[test]
 fn a_dead_zone_the_data_do_not_determine_within_its_range_has_no_sd() {
     use magstand_tests::independent::{Mode, run_case_on};
     let o = run_case_on(&Stand::default(), &control(false), Mode::Unstated, 1);
     let dz = calibrated(&o.diagnosis, "motors.dead_zone");
+    let undetermined = |b: &str| b.contains("0 to 0.6") && b.contains("wider than the range");
     assert!(
         (0.0..=0.6).contains(&dz.value)
-            && dz.sd.is_none()
-            && dz
-                .basis
-                .as_deref()
-                .is_some_and(|b| b.contains("0 to 0.6") && b.contains("wider than the range")),
+            && match dz.sd {
+                Some(sd) => sd <= 0.6,
+                None => dz.basis.as_deref().is_some_and(undetermined),
+            },
         "{dz:?}"
     );
 }
@@ -767,14 +770,30 @@ fn a_dead_zone_stated_too_low_is_named_with_the_armed_motors_current() {
 /// named only where it changes the prediction at commands above it, where every coefficient
 /// is shared (unit test `a_higher_dead_zone_testifies_only_where_a_command_lies_above_it`).
 /// Since the battery's calibration is of second order in the voltage, the gain left to a
-/// dead zone is smaller and is refused earlier, by the halves rule.
+/// dead zone is smaller and was refused earlier, by the halves rule; since the replayed
+/// motors follow the logged voltage between its rows (thirty-fifth session), the dead zone
+/// fitted beside the battery lies within 3 sd of the statement, which the data then do not
+/// reject. Either way no candidate dead zone stands.
 #[test]
 fn a_battery_law_unlike_the_nominal_one_does_not_raise_the_stated_dead_zone() {
     use magstand_tests::independent::{Mode, run_case};
     let o = run_case(&suite_case("battery sag"), Mode::Stated, 2);
     assert_eq!(o.verdict, ["battery_sag"], "{}", o.diagnosis.summary());
-    let refused = refused_with(&o.diagnosis, "dead_zone", |n| n.starts_with("refused"));
-    assert!(refused, "{:?}", o.diagnosis.rounds);
+    let dead_zone_candidates = || {
+        o.diagnosis
+            .rounds
+            .iter()
+            .flat_map(|r| &r.candidates)
+            .filter(|c| c.name == "dead_zone")
+    };
+    assert!(
+        dead_zone_candidates().next().is_some()
+            && dead_zone_candidates().all(|c| c.note.as_deref().is_some_and(|n| {
+                n.starts_with("refused") || n.contains("the data do not reject the statement")
+            })),
+        "{:?}",
+        o.diagnosis.rounds
+    );
 }
 
 /// Regression: on the generator's hexacopter (`Stand::held_out`), whose attitude-like commands
@@ -1369,17 +1388,20 @@ fn a_battery_logged_through_bat_v_is_judged_beside_the_dead_zone_calibrated_with
     }
 }
 
-/// The withdrawal of a finding that a later term's refinement moves to the edge of its range,
-/// on a recording magstand did not make: the third stand's battery and 0.5 s lag (`bat_v`
-/// logged, seed 2) with a scenario that states the motor count and a dead zone of 0.147 (the
-/// generator's is 0.10) and nothing else. The stated dead zone is rejected and named first;
-/// once the battery is named, the dead zone refitted beside it runs to 0, the edge of its
-/// range, where the data do not determine it: it is withdrawn with a warning and is not in
-/// the verdict. Seed 2: on seed 1, since the battery's columns hold the driven motors' law
-/// only, the dead zone is never named (the same verdict, without the withdrawal this test is
-/// about).
+/// A stated constant that a later term's refinement moves to the edge of its range, on a
+/// recording magstand did not make: the third stand's battery and 0.5 s lag (`bat_v` logged,
+/// seed 2) with a scenario that states the motor count and a dead zone of 0.147 (the
+/// generator's is 0.10) and nothing else. Until the thirty-fifth session the stated dead zone
+/// was rejected and named first, and once the battery was named, refitted beside it, ran to 0,
+/// the edge of its range: it was withdrawn with a warning. Since the replayed motors follow
+/// the logged voltage between its rows and the terms are refined again under their model's
+/// weights, the statement is not rejected at all (nor on seeds 1 to 4 with 0.13, 0.147 or
+/// 0.17 stated, the battery with or without `bat_v`): the verdict is the generator's two
+/// effects either way, and a dead zone named on the way must have been withdrawn. (The
+/// withdrawal has no trigger left in the suites; the restatement after one is unit-tested,
+/// `every_finding_after_a_withdrawal_is_restated_in_order`.)
 #[test]
-fn a_stated_constant_refined_to_the_edge_of_its_range_is_withdrawn() {
+fn a_stated_constant_a_later_term_refutes_is_not_in_the_verdict() {
     use magstand_tests::independent::recording_on;
     let stand = Stand::octocopter();
     let case = suite_case("battery sag + current lag");
@@ -1395,26 +1417,22 @@ fn a_stated_constant_refined_to_the_edge_of_its_range_is_withdrawn() {
         .check()
         .unwrap();
     let d = magstand_diagnose::diagnose(&rec, case.label, &stated, &config).unwrap();
-    let withdrawn: Vec<&String> = d
+    let mut verdict = d.verdict.clone();
+    verdict.sort();
+    assert_eq!(verdict, ["battery_sag", "current_lag"], "{}", d.summary());
+    let named_on_the_way = d
+        .rounds
+        .iter()
+        .any(|r| r.accepted.as_deref() == Some("dead_zone"));
+    let withdrawn = d
         .warnings
         .iter()
-        .filter(|w| w.contains("withdrawn"))
-        .collect();
+        .any(|w| w.starts_with("dead_zone") && w.contains("withdrawn"));
     assert!(
-        withdrawn.iter().any(|w| w.starts_with("dead_zone")),
-        "no withdrawal: {:?}\n{}",
+        !named_on_the_way || withdrawn,
+        "a dead zone named on the way is gone without a withdrawal: {:?}\n{}",
         d.warnings,
         d.summary()
-    );
-    assert!(
-        !d.verdict.iter().any(|v| v == "dead_zone"),
-        "a withdrawn name stays in the verdict: {:?}",
-        d.verdict
-    );
-    assert!(
-        d.verdict.iter().any(|v| v == "battery_sag"),
-        "the term that withdrew it is not named: {:?}",
-        d.verdict
     );
 }
 
