@@ -81,6 +81,18 @@ fn assert_named_exactly(o: &magstand_tests::independent::Outcome, expected: &[&s
     assert_eq!(verdict, expected, "{what}\n{}", o.diagnosis.summary());
 }
 
+/// Asserts that `d` names a `current_lag` whose time constant lies within `tolerance_s` of the
+/// generator's 0.5 s, printing `what`, the value and its sd where it does not.
+fn assert_lag_within(d: &magstand_diagnose::Diagnosis, tolerance_s: f64, what: &str) {
+    let p = named_param(d, "current_lag", "spinup_tau_s").expect("the lag");
+    assert!(
+        (p.value - 0.5).abs() < tolerance_s,
+        "{what}: lag {} ± {:?} s, generated 0.5 s",
+        p.value,
+        p.sd
+    );
+}
+
 /// Whether a candidate `name` of some round was refused with a note that `says` accepts.
 fn refused_with(d: &magstand_diagnose::Diagnosis, name: &str, says: impl Fn(&str) -> bool) -> bool {
     d.rounds
@@ -1066,14 +1078,8 @@ fn a_stated_stands_slow_lag_is_followed_along_its_valley_with_the_command_lead()
     use magstand_tests::independent::{Mode, run_case};
     let o = run_case(&suite_case("current lag 0.5 s"), Mode::Stated, 2);
     assert_eq!(o.verdict, ["current_lag"], "{}", o.diagnosis.summary());
-    let p = named_param(&o.diagnosis, "current_lag", "spinup_tau_s").expect("the lag");
     // Within 1 % (its sd is the known gap of `a_slow_lags_reported_uncertainty_holds_...`).
-    assert!(
-        (p.value - 0.5).abs() < 0.005,
-        "lag {} ± {:?} s, generated 0.5 s",
-        p.value,
-        p.sd
-    );
+    assert_lag_within(&o.diagnosis, 0.005, "stated, seed 2");
 }
 
 /// Regression: at 10 Hz, behind a 0.5 s lag, the rows after each command change share that
@@ -1489,13 +1495,7 @@ fn battery_and_lag_named_with_the_lag_where_it_is(mode: magstand_tests::independ
         &["battery_sag", "current_lag"],
         &format!("default stand, battery and lag with bat_v logged, seed 4, {mode:?}"),
     );
-    let tau = named_param(&o.diagnosis, "current_lag", "spinup_tau_s").expect("the lag");
-    assert!(
-        (tau.value - 0.5).abs() < 0.01,
-        "{mode:?}: the lag's time constant is {} ± {:?} s, the generator's 0.5 s",
-        tau.value,
-        tau.sd
-    );
+    assert_lag_within(&o.diagnosis, 0.01, &format!("{mode:?}"));
 }
 
 /// Regression: the replay held a logged voltage over each interval at the row before it, so
