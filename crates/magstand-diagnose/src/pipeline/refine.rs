@@ -117,7 +117,7 @@ pub(crate) fn refine(
 /// its noise again from its own residual. Where the finding took much of that misfit, the
 /// weights move far: a battery's sag left in the residual of a 0.5 s current lag made its
 /// rows at full load look noisy, and the lag, refined under those weights to 0.481 s, was
-/// 10 sds from the 0.495 s its own model's weights give (the default stand's battery and lag,
+/// 8 sds from the 0.495 s its own model's weights give (the default stand's battery and lag,
 /// stated, seed 4: the misfit was named `unexplained`). The weights of a model fitted from
 /// these parameters move little again.
 pub(crate) fn refine_under_own_weights(
