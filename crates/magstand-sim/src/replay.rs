@@ -419,6 +419,7 @@ pub fn replay_behind_lags(
         thr,
         avionics,
         voltage_at: &voltage_at,
+        logged_voltage: bat_v.is_some(),
         supply_a: &supply_a,
     };
     let reader = CoupledReader {
@@ -542,6 +543,8 @@ struct CoupledStepper<'a> {
     avionics: f64,
     /// The supply voltage at a place while a current flows.
     voltage_at: VoltageAt<'a>,
+    /// Whether that voltage is a logged one, which moves between the rows.
+    logged_voltage: bool,
     /// The current the modules see at a place, from the model's.
     supply_a: SupplyAt<'a>,
 }
@@ -563,8 +566,9 @@ impl CoupledStepper<'_> {
             let fraction = if s > 0.0 { s / dt } else { 0.0 };
             (self.voltage_at)(&st.supply, (r - 1, fraction), st.sag_a())
         };
-        let ends = [at(a), at(b)];
-        let voltage = ends[0];
+        let voltage = at(a);
+        // The supply model's voltage does not depend on the place: worked out once.
+        let ends = [voltage, if self.logged_voltage { at(b) } else { voltage }];
         let parts = split_at_switch(r, a, b, lead_from);
         // Every motor steps by the same lengths: one lag factor each, none for a part of no
         // length (it steps no motor), and the last one kept for a length seen again (the

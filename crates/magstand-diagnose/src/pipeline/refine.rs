@@ -58,11 +58,7 @@ pub(crate) fn refine(
             if searches.is_empty() || searched_at[k].as_ref() == Some(&key) {
                 continue;
             }
-            let chi2 = |theta: &[f64]| {
-                let mut refs = as_refs(terms);
-                refs[k].1 = theta;
-                chi2_of(ctx, &refs, ctx.command_lead, weights)
-            };
+            let chi2 = |theta: &[f64]| chi2_with_term_at(ctx, terms, k, theta, weights);
             // The first pass searches an older term with a basin per interval over its whole
             // range (a new term can move its optimum to another basin: a dead zone between two
             // logged command levels); the second refines what the first found, the others
@@ -108,6 +104,20 @@ pub(crate) fn refine(
     valley_steps(ctx, terms, weights);
 }
 
+/// The chi-square of `terms` with term `k`'s parameters at `theta`, the others held, at the
+/// context's command lead: what a coordinate search of one term minimizes.
+fn chi2_with_term_at(
+    ctx: &Context,
+    terms: &[Term],
+    k: usize,
+    theta: &[f64],
+    weights: &Weights,
+) -> Option<f64> {
+    let mut refs = as_refs(terms);
+    refs[k].1 = theta;
+    chi2_of(ctx, &refs, ctx.command_lead, weights)
+}
+
 /// Refits the terms' nonlinear parameters and the command lead near where they are, under the
 /// `weights` of the model as it stands: one coordinate pass (each term within a grid step of
 /// where it is, then the lead), then the valley's Newton steps. Returns whether any moved.
@@ -131,11 +141,7 @@ pub(crate) fn refine_under_own_weights(
         if searches.is_empty() {
             continue;
         }
-        let chi2 = |theta: &[f64]| {
-            let mut refs = as_refs(terms);
-            refs[k].1 = theta;
-            chi2_of(ctx, &refs, ctx.command_lead, weights)
-        };
+        let chi2 = |theta: &[f64]| chi2_with_term_at(ctx, terms, k, theta, weights);
         if let Some(opt) = minimize_near(&searches, Some(&terms[k].theta), chi2) {
             terms[k].theta = opt.theta;
             terms[k].theta_sd = opt.sd;
