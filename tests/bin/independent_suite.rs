@@ -10,45 +10,57 @@
 //! (`NN-label-seedS.csv`, the case's index in the suite), for timing the `magstand` command
 //! on them, each beside the generator's noise-free disturbance at its rows (`.truth`, columns
 //! `dist_x_ut,dist_y_ut,dist_z_ut`, as `compensate --out` writes its prediction): a model's
-//! error against the truth shows where in time it misses, which the noise hides.
+//! error against the truth shows where in time it misses, which the noise hides. With LABEL
+//! `battery-variants` it writes the battery without `bat_v` on each variant
+//! (`vNN-variant-seedS.csv`).
+use magstand_core::Recording;
 use magstand_tests::SuiteArgs;
 use magstand_tests::independent::{
-    Mode, battery_variants, cases, fit_accuracy, markdown, recording, run_case, run_case_on,
+    Mode, battery_variants, cases, fit_accuracy, markdown, recording, recording_on, run_case,
+    run_case_on,
 };
 
 fn main() {
     let SuiteArgs { seeds, only } = SuiteArgs::from_env(2);
     if let Some(dir) = std::env::var_os("WRITE_RECORDINGS") {
         let dir = std::path::PathBuf::from(dir);
-        for (k, case) in cases().into_iter().enumerate() {
-            if !case.label.contains(&only) {
-                continue;
-            }
-            let slug: String = case
-                .label
+        let slug = |label: &str| -> String {
+            label
                 .chars()
                 .map(|c| if c.is_ascii_alphanumeric() { c } else { '-' })
-                .collect();
-            for seed in seeds.clone() {
-                let (rec, truth) = recording(&case, seed);
-                let path = dir.join(format!("{k:02}-{slug}-seed{seed}.csv"));
-                let truth_csv = std::iter::once("dist_x_ut,dist_y_ut,dist_z_ut".to_string())
-                    .chain(truth.iter().map(|v| format!("{},{},{}", v[0], v[1], v[2])))
-                    .collect::<Vec<_>>()
-                    .join("\n")
-                    + "\n";
-                let truth_path = path.with_extension("truth");
-                let written = magstand_core::recording_csv::write(&rec, &path)
-                    .map_err(|e| format!("{}: {e}", path.display()))
-                    .and_then(|()| {
-                        std::fs::write(&truth_path, truth_csv)
-                            .map_err(|e| format!("{}: {e}", truth_path.display()))
-                    });
-                if let Err(e) = written {
-                    eprintln!("error: {e}");
-                    std::process::exit(1);
+                .collect()
+        };
+        // Each file's name and recording: the suite's cases on its stand, or with LABEL
+        // `battery-variants` the battery without `bat_v` on each variant.
+        let write = |name: String, (rec, truth): (Recording, Vec<[f64; 3]>)| {
+            let path = dir.join(name);
+            if let Err(e) = write_with_truth(&rec, &truth, &path) {
+                eprintln!("error: {e}");
+                std::process::exit(1);
+            }
+            println!("{}", path.display());
+        };
+        if only == "battery-variants" {
+            let cases = cases();
+            let Some(case) = cases.iter().find(|c| c.label == BATTERY_WITHOUT_BAT_V) else {
+                eprintln!("error: the suite has no case of a battery without bat_v");
+                std::process::exit(1);
+            };
+            for (k, (label, stand)) in battery_variants().into_iter().enumerate() {
+                for seed in seeds.clone() {
+                    let name = format!("v{k:02}-{}-seed{seed}.csv", slug(label));
+                    write(name, recording_on(&stand, case, seed));
                 }
-                println!("{}", path.display());
+            }
+        } else {
+            for (k, case) in cases().into_iter().enumerate() {
+                if !case.label.contains(&only) {
+                    continue;
+                }
+                for seed in seeds.clone() {
+                    let name = format!("{k:02}-{}-seed{seed}.csv", slug(case.label));
+                    write(name, recording(&case, seed));
+                }
             }
         }
         return;
@@ -81,10 +93,31 @@ fn main() {
 }
 
 /// The battery without `bat_v` on each of [`battery_variants`], both modes, as a table.
+/// The suite's case that [`battery_variants`] runs on each variant.
+const BATTERY_WITHOUT_BAT_V: &str = "battery sag, bat_v not logged";
+
+/// Writes `rec` to `path` as CSV, and beside it the generator's noise-free disturbance
+/// `truth` at its rows (`.truth`).
+fn write_with_truth(
+    rec: &Recording,
+    truth: &[[f64; 3]],
+    path: &std::path::Path,
+) -> Result<(), String> {
+    let truth_csv = std::iter::once("dist_x_ut,dist_y_ut,dist_z_ut".to_string())
+        .chain(truth.iter().map(|v| format!("{},{},{}", v[0], v[1], v[2])))
+        .collect::<Vec<_>>()
+        .join("\n")
+        + "\n";
+    let truth_path = path.with_extension("truth");
+    magstand_core::recording_csv::write(rec, path)
+        .map_err(|e| format!("{}: {e}", path.display()))?;
+    std::fs::write(&truth_path, truth_csv).map_err(|e| format!("{}: {e}", truth_path.display()))
+}
+
 fn print_battery_variants(seeds: std::ops::Range<u64>) {
     let Some(case) = cases()
         .into_iter()
-        .find(|c| c.label == "battery sag, bat_v not logged")
+        .find(|c| c.label == BATTERY_WITHOUT_BAT_V)
     else {
         eprintln!("error: the suite has no case of a battery without bat_v");
         std::process::exit(1);

@@ -267,11 +267,18 @@ impl Effect for BatterySag {
         // The free forms' resistance at its lowest: no sag under load beyond what the
         // calibrated current law holds (the capacity stays, where the run empties the pack or
         // crosses a bend of its curve; where it does neither, `drawn_charge` stands for it).
+        // The catalog's capacity at its largest: the run's charge moves the pack's voltage
+        // less than any capacity in range makes it, so the capacity only scales a fall the
+        // data cannot place on the LiPo curve; `drawn_charge` has the fall's size free and
+        // no constant of the pack.
         match self.form {
             Form::FreeDischarge { order, sag: true }
                 if lower && parameter == RESISTANCE_SEARCH.name =>
             {
                 Some(richer_form(Form::FreeDischarge { order, sag: false }))
+            }
+            Form::Lipo if !lower && parameter == CAPACITY_SEARCH.name => {
+                Some(richer_form(Form::DrawnCharge))
             }
             _ => None,
         }

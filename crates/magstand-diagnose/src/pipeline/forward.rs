@@ -945,6 +945,22 @@ pub(crate) fn forward_search<'e>(
             .filter(|e| !terms.iter().any(|t| t.effect.name() == e.name()))
             .filter(|e| !indeterminate.contains(&(e.name(), e.variant())))
             .collect();
+        // Where a catalog's form itself was refused at an edge after its refinement, the form
+        // that edge stands for is tried in its place, on its own gain: there is no catalog
+        // form left to try it beside (the independent generator's quad on a 10 Ah pack,
+        // without `bat_v`: the catalog battery's capacity ran to its largest once refined,
+        // and `drawn_charge`, which needs no capacity, was never tried).
+        let in_place: Vec<&dyn Effect> = limits
+            .iter()
+            .copied()
+            .filter(|l| {
+                indeterminate.contains(&(l.name(), None))
+                    && !indeterminate.contains(&(l.name(), l.variant()))
+                    && !terms.iter().any(|t| t.effect.name() == l.name())
+                    && !open.iter().any(|e| same_form(*e, *l))
+            })
+            .collect();
+        open.extend(in_place);
         // The stand constants nobody stated are calibrated first, in rounds of their own: a
         // calibration is part of the baseline every finding is measured against, and a round
         // of a few candidates costs a fraction of the catalog's. The effects whose misfit can
