@@ -117,6 +117,15 @@ fn in_search_coordinates<'a>(
     }
 }
 
+/// Each parameter of `theta` in its search's coordinates.
+fn units_of(searches: &[Search], theta: &[f64]) -> Vec<f64> {
+    searches
+        .iter()
+        .zip(theta)
+        .map(|(s, &v)| s.unit_of(v))
+        .collect()
+}
+
 /// [`minimize`] over the whole range, or, `from` the optimum of an objective close to this
 /// one (the same search after another term's parameters moved a little), Brent's refinement
 /// within a grid step of each parameter without the grid. The whole range is searched where
@@ -355,11 +364,7 @@ pub(crate) fn newton_step(
         return None;
     }
     let eval = in_search_coordinates(searches, &f);
-    let u0: Vec<f64> = searches
-        .iter()
-        .zip(from)
-        .map(|(s, &v)| s.unit_of(v))
-        .collect();
+    let u0 = units_of(searches, from);
     let d: Vec<f64> = searches
         .iter()
         .map(|s| NEWTON_PROBE_STEPS * s.step())
@@ -448,11 +453,7 @@ pub(crate) fn predicted_fall(
         return None;
     }
     let eval = in_search_coordinates(searches, &f);
-    let u0: Vec<f64> = searches
-        .iter()
-        .zip(from)
-        .map(|(s, &v)| s.unit_of(v))
-        .collect();
+    let u0 = units_of(searches, from);
     // Each parameter's probes inside its range: centred on it, or moved in by the probe's
     // distance at an end (one more evaluation, at the centre).
     let mut probes: Vec<Vec<f64>> = Vec::new();
