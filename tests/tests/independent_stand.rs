@@ -1457,6 +1457,35 @@ fn a_stated_constant_a_later_term_refutes_is_not_in_the_verdict() {
     );
 }
 
+/// Regression: the same recording with the stand stated was `battery_sag, unexplained`, its
+/// model within 0.02 µT rms of the generator's truth. What was named was 0.02 to 0.03 µT left
+/// at low throttle after steps down, where the generator's noise is smallest: the structure's
+/// share was measured on the residual standardized by the noise law, where it carried a tenth
+/// of the variance, while it added about 1 % to the residual's rms in µT, which the rule is
+/// about. The share is now measured in µT; the structure stays in the warnings.
+#[test]
+fn structure_that_adds_little_to_the_residuals_rms_in_ut_is_not_named() {
+    use magstand_tests::independent::{Mode, run_case_on};
+    let stand = Stand {
+        rate_hz: 30.0,
+        ..Stand::default()
+    };
+    let o = run_case_on(&stand, &suite_case("battery sag"), Mode::Stated, 2);
+    assert_named_exactly(
+        &o,
+        &["battery_sag"],
+        "default stand at 30 Hz, battery with bat_v logged, seed 2, stated",
+    );
+    assert!(
+        o.diagnosis
+            .warnings
+            .iter()
+            .any(|w| w.contains("small structure")),
+        "warnings {:?}",
+        o.diagnosis.warnings
+    );
+}
+
 /// Regression: on the generator's default stand sampled at 30 Hz (a rate no suite had run), a
 /// battery logged through `bat_v` (seed 2, unstated) was named `thermal_drift, unexplained`.
 /// The battery's columns (the supply's change times each current-law column) held the count of
