@@ -1457,6 +1457,24 @@ fn a_stated_constant_a_later_term_refutes_is_not_in_the_verdict() {
     );
 }
 
+/// The suite's battery with `bat_v` logged on the default stand sampled at 30 Hz, seed 2,
+/// diagnosed as `mode` says, asserted to be named `battery_sag` alone.
+fn battery_at_30_hz_named_alone(
+    mode: magstand_tests::independent::Mode,
+) -> magstand_tests::independent::Outcome {
+    let stand = Stand {
+        rate_hz: 30.0,
+        ..Stand::default()
+    };
+    let o = magstand_tests::independent::run_case_on(&stand, &suite_case("battery sag"), mode, 2);
+    assert_named_exactly(
+        &o,
+        &["battery_sag"],
+        &format!("default stand at 30 Hz, battery with bat_v logged, seed 2, {mode:?}"),
+    );
+    o
+}
+
 /// Regression: the same recording with the stand stated was `battery_sag, unexplained`, its
 /// model within 0.02 µT rms of the generator's truth. What was named was 0.02 to 0.03 µT left
 /// at low throttle after steps down, where the generator's noise is smallest: the structure's
@@ -1468,17 +1486,7 @@ fn a_stated_constant_a_later_term_refutes_is_not_in_the_verdict() {
 /// of the variance in µT: measured in µT alone, they were named). It stays in the warnings.
 #[test]
 fn structure_that_adds_little_to_the_residuals_rms_in_ut_is_not_named() {
-    use magstand_tests::independent::{Mode, run_case_on};
-    let stand = Stand {
-        rate_hz: 30.0,
-        ..Stand::default()
-    };
-    let o = run_case_on(&stand, &suite_case("battery sag"), Mode::Stated, 2);
-    assert_named_exactly(
-        &o,
-        &["battery_sag"],
-        "default stand at 30 Hz, battery with bat_v logged, seed 2, stated",
-    );
+    let o = battery_at_30_hz_named_alone(magstand_tests::independent::Mode::Stated);
     assert!(
         o.diagnosis
             .warnings
@@ -1500,17 +1508,7 @@ fn structure_that_adds_little_to_the_residuals_rms_in_ut_is_not_named() {
 /// the driven motors' law only.
 #[test]
 fn a_battery_through_bat_v_moves_the_driven_motors_current_only() {
-    use magstand_tests::independent::{Mode, run_case_on};
-    let stand = Stand {
-        rate_hz: 30.0,
-        ..Stand::default()
-    };
-    let o = run_case_on(&stand, &suite_case("battery sag"), Mode::Unstated, 2);
-    assert_named_exactly(
-        &o,
-        &["battery_sag"],
-        "default stand at 30 Hz, battery with bat_v logged, seed 2, unstated",
-    );
+    let o = battery_at_30_hz_named_alone(magstand_tests::independent::Mode::Unstated);
     let columns = &o
         .diagnosis
         .model
