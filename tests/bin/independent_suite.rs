@@ -16,7 +16,7 @@
 use magstand_core::Recording;
 use magstand_tests::SuiteArgs;
 use magstand_tests::independent::{
-    Mode, battery_variants, cases, fit_accuracy, markdown, recording, recording_on, run_case,
+    Case, Mode, battery_variants, cases, fit_accuracy, markdown, recording, recording_on, run_case,
     run_case_on,
 };
 
@@ -41,15 +41,11 @@ fn main() {
             println!("{}", path.display());
         };
         if only == "battery-variants" {
-            let cases = cases();
-            let Some(case) = cases.iter().find(|c| c.label == BATTERY_WITHOUT_BAT_V) else {
-                eprintln!("error: the suite has no case of a battery without bat_v");
-                std::process::exit(1);
-            };
+            let case = battery_without_bat_v();
             for (k, (label, stand)) in battery_variants().into_iter().enumerate() {
                 for seed in seeds.clone() {
                     let name = format!("v{k:02}-{}-seed{seed}.csv", slug(label));
-                    write(name, recording_on(&stand, case, seed));
+                    write(name, recording_on(&stand, &case, seed));
                 }
             }
         } else {
@@ -92,9 +88,18 @@ fn main() {
     }
 }
 
-/// The battery without `bat_v` on each of [`battery_variants`], both modes, as a table.
-/// The suite's case that [`battery_variants`] runs on each variant.
-const BATTERY_WITHOUT_BAT_V: &str = "battery sag, bat_v not logged";
+/// The suite's case that [`battery_variants`] runs on each variant: the battery without
+/// `bat_v`. Exits with an error where the suite has none.
+fn battery_without_bat_v() -> Case {
+    let Some(case) = cases()
+        .into_iter()
+        .find(|c| c.label == "battery sag, bat_v not logged")
+    else {
+        eprintln!("error: the suite has no case of a battery without bat_v");
+        std::process::exit(1);
+    };
+    case
+}
 
 /// Writes `rec` to `path` as CSV, and beside it the generator's noise-free disturbance
 /// `truth` at its rows (`.truth`).
@@ -114,14 +119,9 @@ fn write_with_truth(
     std::fs::write(&truth_path, truth_csv).map_err(|e| format!("{}: {e}", truth_path.display()))
 }
 
+/// The battery without `bat_v` on each of [`battery_variants`], both modes, as a table.
 fn print_battery_variants(seeds: std::ops::Range<u64>) {
-    let Some(case) = cases()
-        .into_iter()
-        .find(|c| c.label == BATTERY_WITHOUT_BAT_V)
-    else {
-        eprintln!("error: the suite has no case of a battery without bat_v");
-        std::process::exit(1);
-    };
+    let case = battery_without_bat_v();
     println!("| variant | mode | seed | verdict | exact |\n|---|---|---|---|---|");
     let mut exact = 0;
     let mut runs = 0;
