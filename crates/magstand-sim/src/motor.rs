@@ -205,6 +205,13 @@ pub struct MotorConstants {
 }
 
 impl MotorConstants {
+    /// Whether `other` holds the same bits: two motors with the same bits and the same
+    /// commands step through the same states.
+    pub fn same_bits(&self, other: &Self) -> bool {
+        [self.kt, self.kq, self.a].map(f64::to_bits)
+            == [other.kt, other.kq, other.a].map(f64::to_bits)
+    }
+
     /// See [`MotorParams::steady_speed`].
     pub fn steady_speed(&self, p: &MotorParams, duty: f64, voltage_v: f64) -> f64 {
         let drive = voltage_v.max(0.0) * duty - p.winding_resistance_ohm * p.idle_current_a;

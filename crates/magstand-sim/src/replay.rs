@@ -413,9 +413,11 @@ pub fn replay_behind_lags(
             .then(|| SeenCurrent::new(supply_lags, avionics)),
         parts: stand_parts,
     };
+    let twins = twins(thr, &constants);
     let stepper = CoupledStepper {
         p,
         constants: &constants,
+        twins: &twins,
         thr,
         avionics,
         voltage_at: &voltage_at,
@@ -539,6 +541,8 @@ impl Clone for CoupledState {
 struct CoupledStepper<'a> {
     p: &'a Scenario,
     constants: &'a [MotorConstants],
+    /// Each motor's first twin ([`twins`]), whose states it steps through.
+    twins: &'a [Option<usize>],
     thr: &'a [Vec<f64>],
     avionics: f64,
     /// The supply voltage at a place while a current flows.
@@ -575,7 +579,16 @@ impl CoupledStepper<'_> {
         // substeps of an interval are alike).
         let alphas = lag_factors(&parts, lags);
         let mut total_a = self.avionics;
-        for (m, ms) in st.motors.iter_mut().enumerate() {
+        for m in 0..st.motors.len() {
+            // A twin steps through its first's states: the same bits, copied.
+            if let Some(first) = self.twins[m] {
+                st.motors[m] = st.motors[first];
+                st.targets[m] = st.targets[first];
+                st.acting[m] = st.acting[first];
+                total_a += st.motors[m].current_a;
+                continue;
+            }
+            let ms = &mut st.motors[m];
             let motor = Motor {
                 params: &self.p.motors,
                 constants: &self.constants[m],
@@ -715,6 +728,23 @@ fn lag_factors(parts: &Parts, lags: &mut MotorLags) -> [StepFactors; 2] {
 /// Motor `m`'s command at row `r` of `thr` (one column per motor, or one for all).
 fn motor_command(thr: &[Vec<f64>], m: usize, r: usize) -> f64 {
     thr[if thr.len() == 1 { 0 } else { m }][r]
+}
+
+/// For each motor, the first motor before it that steps through the same states (the same
+/// constants' bits and the same commands' bits: a stand's common throttle), where there is
+/// one: its columns are that motor's, and a replay steps only the first of each kind.
+fn twins(thr: &[Vec<f64>], constants: &[MotorConstants]) -> Vec<Option<usize>> {
+    let same_commands = |a: usize, b: usize| {
+        thr.len() == 1
+            || thr[a].len() == thr[b].len()
+                && thr[a]
+                    .iter()
+                    .zip(&thr[b])
+                    .all(|(x, y)| x.to_bits() == y.to_bits())
+    };
+    (0..constants.len())
+        .map(|m| (0..m).find(|&j| constants[j].same_bits(&constants[m]) && same_commands(j, m)))
+        .collect()
 }
 
 /// One motor as a replay steps it: its parameters and its command at a row.
@@ -875,12 +905,16 @@ fn replay_uncoupled(
         .collect();
     // The voltage at each row, once for all motors.
     let volts: Vec<f64> = (0..rows).map(voltage_v).collect();
-    let per_motor: Vec<[Vec<f64>; 4]> = (0..n_motors)
-        .into_par_iter()
-        .map(|m| {
+    let constants: Vec<_> = (0..n_motors).map(|m| p.motors.constants(m)).collect();
+    let twins = twins(thr, &constants);
+    // Only the first motor of each kind is stepped; its twins take copies of its columns.
+    let firsts: Vec<usize> = (0..n_motors).filter(|&m| twins[m].is_none()).collect();
+    let stepped: Vec<[Vec<f64>; 4]> = firsts
+        .par_iter()
+        .map(|&m| {
             let motor = Motor {
                 params: &p.motors,
-                constants: &p.motors.constants(m),
+                constants: &constants[m],
                 command: |row| command(m, row),
             };
             let mut st = MotorState::default();
@@ -917,6 +951,15 @@ fn replay_uncoupled(
             columns
         })
         .collect();
+    // Each twin a copy of its first's columns, then each first its own.
+    let mut per_motor: Vec<Option<[Vec<f64>; 4]>> = twins
+        .iter()
+        .map(|twin| twin.and_then(|first| firsts.iter().position(|&f| f == first)))
+        .map(|at| at.map(|k| stepped[k].clone()))
+        .collect();
+    for (m, columns) in firsts.into_iter().zip(stepped) {
+        per_motor[m] = Some(columns);
+    }
     let mut tr = Trace {
         t_s: t_s.to_vec(),
         speed: Vec::with_capacity(n_motors),
@@ -935,7 +978,7 @@ fn replay_uncoupled(
         modules: Vec::new(),
         extra_ut: Vec::with_capacity(rows),
     };
-    for [speed, driven, armed, current_a] in per_motor {
+    for [speed, driven, armed, current_a] in per_motor.into_iter().flatten() {
         tr.speed.push(speed);
         tr.driven.push(driven);
         tr.armed.push(armed);
@@ -1562,6 +1605,77 @@ mod tests {
             temp.late <= 1.5 * temp.aligned,
             "temperature from the fine grid: {temp:?} °C"
         );
+    }
+
+    /// Motors with the same constants and the same commands are stepped once and copied
+    /// ([`twins`]): their columns are the bits each gets stepped on its own. A change of the
+    /// last row's command of all motors but the first (each by its own amount) breaks the twins without touching any
+    /// earlier row (a row's state depends on no later command), so the rows before it must be
+    /// the same bits, in an uncoupled replay (a logged voltage) and a coupled one (a battery
+    /// that sags with the load).
+    #[test]
+    fn motors_commanded_alike_are_the_bits_of_each_stepped_on_its_own() {
+        let s = Scenario::from_toml_str(STAIR, "t")
+            .unwrap()
+            .check("t", None)
+            .unwrap();
+        let rec = simulate(&s, 4);
+        let n = s.params().motors.count;
+        let alike: Vec<Vec<f64>> = vec![rec.thr[0].clone(); n];
+        let mut apart = alike.clone();
+        for (m, column) in apart.iter_mut().enumerate() {
+            *column.last_mut().unwrap() += 0.01 * m as f64;
+        }
+        assert_eq!(
+            twins(&alike, &vec![s.params().motors.constants(0); n])[1..],
+            vec![Some(0); n - 1]
+        );
+        assert!(
+            twins(&apart, &vec![s.params().motors.constants(0); n])
+                .iter()
+                .all(Option::is_none)
+        );
+        let bat_v: Vec<f64> = (0..rec.len()).map(|r| 12.0 - 1e-4 * r as f64).collect();
+        for bat_v in [Some(bat_v.as_slice()), None] {
+            let logged = Logged { bat_v, bat_a: None };
+            assert_eq!(motors_uncoupled(s.params(), logged), bat_v.is_some());
+            let [once, each] =
+                [&alike, &apart].map(|thr| replay(s.params(), &rec.t_s, thr, bat_v, 0.3));
+            let before_last = |c: &[f64]| {
+                c[..c.len() - 1]
+                    .iter()
+                    .map(|v| v.to_bits())
+                    .collect::<Vec<_>>()
+            };
+            for m in 0..n {
+                for (what, a, b) in [
+                    ("speed", &once.speed[m], &each.speed[m]),
+                    ("current", &once.current_a[m], &each.current_a[m]),
+                    ("driven", &once.driven[m], &each.driven[m]),
+                ] {
+                    assert!(
+                        before_last(a) == before_last(b),
+                        "motor {m}'s {what} differs, bat_v logged: {}",
+                        bat_v.is_some()
+                    );
+                }
+            }
+            assert!(
+                before_last(&once.total_a) == before_last(&each.total_a),
+                "total current, bat_v logged: {}",
+                bat_v.is_some()
+            );
+            assert!(
+                before_last(&once.voltage_v) == before_last(&each.voltage_v),
+                "voltage, bat_v logged: {}",
+                bat_v.is_some()
+            );
+            assert!(
+                once.total_a.iter().any(|a| *a > 1.0),
+                "the motors never ran: {:?} A",
+                once.total_a.iter().fold(0.0f64, |m, a| m.max(*a))
+            );
+        }
     }
 
     /// The motors of an uncoupled replay are replayed on all cores: the trace is the same bits
