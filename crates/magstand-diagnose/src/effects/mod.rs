@@ -620,6 +620,14 @@ impl TestStand {
         }
     }
 
+    /// The stand with its nominal scenario changed by `change` (as a scenario states it).
+    pub(crate) fn with_nominal(mut self, change: impl FnOnce(&mut Scenario)) -> Self {
+        change(&mut self.nominal);
+        self.trace =
+            magstand_sim::replay::replay(&self.nominal, &self.rec.t_s, &self.rec.thr, None, 0.5);
+        self
+    }
+
     /// A context of a stand recording (no flight, the supply modelled) at lead 0.5.
     pub(crate) fn context(&self) -> Context<'_> {
         Context {

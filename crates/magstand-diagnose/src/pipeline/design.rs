@@ -266,6 +266,16 @@ pub(crate) fn build_with_lead(ctx: &Context, terms: &[(&dyn Effect, &[f64])], le
     for lag in field_kernels() {
         lag_current_field(&mut design, &mut fixed, lag);
     }
+    // A stated lag is the baseline's as a finding's is its term's, with the same second order
+    // of a field nonlinear in the current: a lag stated at a finding's value (the augmented
+    // scenario's) is the model the finding had.
+    if let Some(lag) = &stated_kernel {
+        let avionics_a = s.supply.avionics_current_a();
+        design.push(
+            LAGGED_CURRENT_SQUARED,
+            square_behind_lag(trace, avionics_a, lag),
+        );
+    }
     // Every term's columns, from the baseline's current law as built; a term that lags the
     // currents' field also takes the second order of a field nonlinear in the current.
     let law: Vec<(&str, &[f64])> = design.current_law_columns().collect();
@@ -291,7 +301,7 @@ pub(crate) fn build_with_lead(ctx: &Context, terms: &[(&dyn Effect, &[f64])], le
             };
             if let Some(lag) = field_lag {
                 columns.push((
-                    "lagged_current_squared_a2".into(),
+                    LAGGED_CURRENT_SQUARED.into(),
                     square_behind_lag(trace, avionics_a, lag),
                 ));
             }
@@ -447,6 +457,10 @@ fn square_behind_lag(trace: &Trace, avionics_a: f64, lag: &FieldLag) -> Vec<f64>
         .collect()
 }
 
+/// The column of the second order of a field nonlinear in a lagged current
+/// ([`square_behind_lag`]).
+const LAGGED_CURRENT_SQUARED: &str = "lagged_current_squared_a2";
+
 /// The terms as (effect, parameters) pairs, as [`build`] takes them.
 pub(crate) fn as_refs<'a>(terms: &'a [Term<'a>]) -> Vec<(&'a dyn Effect, &'a [f64])> {
     terms
@@ -570,6 +584,52 @@ pub(crate) fn timing_spread(ctx: &Context, terms: &[Term], coef: &[[f64; 3]]) ->
 mod tests {
     use super::*;
     use magstand_core::Recording;
+
+    /// A lag of the currents' field stated in the scenario (`motors.current_lag_s`, as the
+    /// augmented scenario of a `current_lag` finding slower than any spin-up writes it) had
+    /// the lagged law columns but not the finding's second order of a field nonlinear in the
+    /// current (`lagged_current_squared_a2`): rediagnosed on its own augmented scenario, a
+    /// recording's baseline was not the model the finding had. Now the stated lag's design is
+    /// the finding's, column for column and bit for bit (the spin-up behind it the fastest
+    /// searched, as the finding sets an unstated one).
+    #[test]
+    fn a_stated_lag_of_the_currents_field_is_the_design_the_finding_had() {
+        let tau_s = 0.8;
+        let found = crate::effects::TestStand::drifting_stair(2000)
+            .with_nominal(|s| s.motors.spinup_tau_s = 0.001);
+        let stated = crate::effects::TestStand::drifting_stair(2000).with_nominal(|s| {
+            s.motors.spinup_tau_s = 0.001;
+            s.motors.current_lag_s = tau_s;
+        });
+        let lag = crate::effects::find("current_lag", None).unwrap();
+        let with_finding = build(&found.context(), &[(lag, &[tau_s])]);
+        let with_statement = build(&stated.context(), &[]);
+        assert_eq!(
+            with_statement.design.names, with_finding.design.names,
+            "the stated lag's columns against the finding's"
+        );
+        for (name, (a, b)) in with_statement.design.names.iter().zip(
+            with_statement
+                .design
+                .columns
+                .iter()
+                .zip(&with_finding.design.columns),
+        ) {
+            let bits = |c: &[f64]| c.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+            assert!(bits(a) == bits(b), "column {name} differs");
+        }
+        let square = with_statement
+            .design
+            .names
+            .iter()
+            .position(|n| n == LAGGED_CURRENT_SQUARED);
+        assert!(
+            square.is_some_and(|k| with_statement.design.columns[k]
+                .iter()
+                .any(|v| v.abs() > 1e-3)),
+            "the second order is all but zero: {square:?}"
+        );
+    }
 
     /// A command stepped from 0 to 1 at 1.0075 s (a quarter of the 0.01 s interval before the
     /// row at 1.01 s), read by a magnetometer late by 0.3, 0.305 and 0.3125 s (whole intervals,
