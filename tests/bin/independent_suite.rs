@@ -24,6 +24,10 @@ fn main() {
     let SuiteArgs { seeds, only } = SuiteArgs::from_env(2);
     if let Some(dir) = std::env::var_os("WRITE_RECORDINGS") {
         let dir = std::path::PathBuf::from(dir);
+        if let Err(e) = std::fs::create_dir_all(&dir) {
+            eprintln!("error: {}: {e}", dir.display());
+            std::process::exit(1);
+        }
         let slug = |label: &str| -> String {
             label
                 .chars()
@@ -114,8 +118,8 @@ fn write_with_truth(
         .join("\n")
         + "\n";
     let truth_path = path.with_extension("truth");
-    magstand_core::recording_csv::write(rec, path)
-        .map_err(|e| format!("{}: {e}", path.display()))?;
+    // The recording's error names its file already.
+    magstand_core::recording_csv::write(rec, path).map_err(|e| e.to_string())?;
     std::fs::write(&truth_path, truth_csv).map_err(|e| format!("{}: {e}", truth_path.display()))
 }
 

@@ -15,9 +15,8 @@ use magstand_tests::semireal::{
 fn write_recordings(dir: &std::path::Path) -> Result<(), String> {
     std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
     let write = |rec: &magstand_core::Recording, name: String| {
-        let path = dir.join(name);
-        magstand_core::recording_csv::write(rec, &path)
-            .map_err(|e| format!("{}: {e}", path.display()))
+        // The recording's error names its file already.
+        magstand_core::recording_csv::write(rec, dir.join(name)).map_err(|e| e.to_string())
     };
     for log in logs() {
         let stem = log.file.split('.').next().unwrap_or(log.file);
