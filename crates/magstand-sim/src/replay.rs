@@ -1609,16 +1609,13 @@ mod tests {
 
     /// Motors with the same constants and the same commands are stepped once and copied
     /// ([`twins`]): their columns are the bits each gets stepped on its own. A change of the
-    /// last row's command of all motors but the first (each by its own amount) breaks the twins without touching any
-    /// earlier row (a row's state depends on no later command), so the rows before it must be
-    /// the same bits, in an uncoupled replay (a logged voltage) and a coupled one (a battery
-    /// that sags with the load).
+    /// last row's command of all motors but the first (each by its own amount) breaks the
+    /// twins without touching any earlier row (a row's state depends on no later command), so
+    /// the rows before it must be the same bits, in an uncoupled replay (a logged voltage) and
+    /// a coupled one (a battery that sags with the load).
     #[test]
     fn motors_commanded_alike_are_the_bits_of_each_stepped_on_its_own() {
-        let s = Scenario::from_toml_str(STAIR, "t")
-            .unwrap()
-            .check("t", None)
-            .unwrap();
+        let s = stair();
         let rec = simulate(&s, 4);
         let n = s.params().motors.count;
         let alike: Vec<Vec<f64>> = vec![rec.thr[0].clone(); n];
@@ -1682,10 +1679,7 @@ mod tests {
     /// on one thread and on several, with one command column per motor and a logged voltage.
     #[test]
     fn an_uncoupled_replay_is_the_same_bits_on_any_number_of_threads() {
-        let s = Scenario::from_toml_str(STAIR, "t")
-            .unwrap()
-            .check("t", None)
-            .unwrap();
+        let s = stair();
         let rec = simulate(&s, 4);
         let thr: Vec<Vec<f64>> = (0..s.params().motors.count)
             .map(|m| {
