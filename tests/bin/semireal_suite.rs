@@ -20,8 +20,13 @@ fn write_recordings(dir: &std::path::Path) -> Result<(), String> {
     };
     for log in logs() {
         let stem = log.file.split('.').next().unwrap_or(log.file);
-        let Ok(rec) = import(&log) else {
-            continue;
+        // A log the suite cannot import is reported in its table; here it is only skipped.
+        let rec = match import(&log) {
+            Ok(rec) => rec,
+            Err(e) => {
+                eprintln!("semireal-suite: {}: not written: {e}", log.file);
+                continue;
+            }
         };
         write(&rec, format!("{stem}.csv"))?;
         for (set, list) in [("dev", injections()), ("held-out", held_out_injections())] {

@@ -269,8 +269,8 @@ pub(crate) fn build_with_lead(ctx: &Context, terms: &[(&dyn Effect, &[f64])], le
     // A stated lag is the baseline's as a finding's is its term's, with the same second order
     // of a field nonlinear in the current: a lag stated at a finding's value (the augmented
     // scenario's) is the model the finding had.
+    let avionics_a = s.supply.avionics_current_a();
     if let Some(lag) = &stated_kernel {
-        let avionics_a = s.supply.avionics_current_a();
         design.push(
             LAGGED_CURRENT_SQUARED,
             square_behind_lag(trace, avionics_a, lag),
@@ -283,7 +283,6 @@ pub(crate) fn build_with_lead(ctx: &Context, terms: &[(&dyn Effect, &[f64])], le
         .iter()
         .map(|(name, c)| (name.as_str(), c.as_slice()))
         .collect();
-    let avionics_a = s.supply.avionics_current_a();
     let added: Vec<Vec<(String, Vec<f64>)>> = terms
         .iter()
         .zip(&kernels)
@@ -316,11 +315,10 @@ pub(crate) fn build_with_lead(ctx: &Context, terms: &[(&dyn Effect, &[f64])], le
         }
         term_columns.push(start..design.len());
     }
-    let avionics = s.supply.avionics_current_a();
     let max_a = trace
         .total_a
         .iter()
-        .map(|a| a - avionics)
+        .map(|a| a - avionics_a)
         .fold(0.0, f64::max)
         .max(1e-9);
     Built {
@@ -329,7 +327,7 @@ pub(crate) fn build_with_lead(ctx: &Context, terms: &[(&dyn Effect, &[f64])], le
         load: trace
             .total_a
             .iter()
-            .map(|a| (a - avionics) / max_a)
+            .map(|a| (a - avionics_a) / max_a)
             .collect(),
         full_load_a: max_a,
         term_columns,
