@@ -354,6 +354,7 @@ pub fn replay_behind_lags(
         extra_ut: Vec::with_capacity(rows),
     };
     let constants: Vec<_> = (0..n_motors).map(|m| p.motors.constants(m)).collect();
+    let twins = twins(thr, &constants);
     // The supply voltage at a place (the logged one where followed) while `total_a` flows. A
     // supply whose voltage does not move with the load (a bench without source resistance)
     // gives its no-load voltage, which leaves the motors' current out of the next substep's
@@ -370,7 +371,8 @@ pub fn replay_behind_lags(
     // substeps would only cost exponentials and give the same state to rounding.
     if motors_uncoupled(p, logged) {
         // A late magnetometer's places are found by the replay's own steps, not between rows.
-        let mut tr = replay_uncoupled(p, t_s, thr, command_lead, places.as_deref(), &|r| {
+        let motors = (constants.as_slice(), twins.as_slice());
+        let mut tr = replay_uncoupled(p, motors, t_s, thr, command_lead, places.as_deref(), &|r| {
             voltage_at(&SupplyState::default(), (r, 0.0), 0.0)
         });
         // Each row on its own, on all cores (the rows' sums are the same bits in any split).
@@ -413,7 +415,6 @@ pub fn replay_behind_lags(
             .then(|| SeenCurrent::new(supply_lags, avionics)),
         parts: stand_parts,
     };
-    let twins = twins(thr, &constants);
     let stepper = CoupledStepper {
         p,
         constants: &constants,
@@ -856,9 +857,11 @@ fn push_motor_row(
 /// toward a held target is advanced exactly in one step per part of an interval (the substeps
 /// would only cost exponentials and give the same state to rounding), and the motors, being
 /// independent, are replayed on all cores: each motor's columns are the same bits whatever
-/// the thread count.
+/// the thread count. `(constants, twins)` are each motor's constants and [`twins`]: only the
+/// first motor of each kind is stepped.
 fn replay_uncoupled(
     p: &Scenario,
+    (constants, twins): (&[MotorConstants], &[Option<usize>]),
     t_s: &[f64],
     thr: &[Vec<f64>],
     command_lead: f64,
@@ -905,13 +908,13 @@ fn replay_uncoupled(
         .collect();
     // The voltage at each row, once for all motors.
     let volts: Vec<f64> = (0..rows).map(voltage_v).collect();
-    let constants: Vec<_> = (0..n_motors).map(|m| p.motors.constants(m)).collect();
-    let twins = twins(thr, &constants);
     // Only the first motor of each kind is stepped; its twins take copies of its columns.
-    let firsts: Vec<usize> = (0..n_motors).filter(|&m| twins[m].is_none()).collect();
-    let stepped: Vec<[Vec<f64>; 4]> = firsts
-        .par_iter()
-        .map(|&m| {
+    let stepped: Vec<Option<[Vec<f64>; 4]>> = (0..n_motors)
+        .into_par_iter()
+        .map(|m| {
+            if twins[m].is_some() {
+                return None;
+            }
             let motor = Motor {
                 params: &p.motors,
                 constants: &constants[m],
@@ -948,17 +951,14 @@ fn replay_uncoupled(
                     push_motor_row(&p.motors, &st, command(m, acting), full_speed, [a, b, c, d]);
                 }
             }
-            columns
+            Some(columns)
         })
         .collect();
-    // Each twin a copy of its first's columns, then each first its own.
-    let mut per_motor: Vec<Option<[Vec<f64>; 4]>> = twins
-        .iter()
-        .map(|twin| twin.and_then(|first| firsts.iter().position(|&f| f == first)))
-        .map(|at| at.map(|k| stepped[k].clone()))
-        .collect();
-    for (m, columns) in firsts.into_iter().zip(stepped) {
-        per_motor[m] = Some(columns);
+    // A first comes before its twins: each twin copies what is already in place.
+    let mut per_motor: Vec<[Vec<f64>; 4]> = Vec::with_capacity(n_motors);
+    for (columns, twin) in stepped.into_iter().zip(twins) {
+        let columns = columns.or_else(|| twin.map(|first| per_motor[first].clone()));
+        per_motor.extend(columns);
     }
     let mut tr = Trace {
         t_s: t_s.to_vec(),
@@ -978,7 +978,7 @@ fn replay_uncoupled(
         modules: Vec::new(),
         extra_ut: Vec::with_capacity(rows),
     };
-    for [speed, driven, armed, current_a] in per_motor.into_iter().flatten() {
+    for [speed, driven, armed, current_a] in per_motor {
         tr.speed.push(speed);
         tr.driven.push(driven);
         tr.armed.push(armed);

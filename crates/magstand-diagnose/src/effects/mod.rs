@@ -609,7 +609,11 @@ pub(crate) struct TestStand {
 impl TestStand {
     /// The stand for `rec`.
     pub(crate) fn new(rec: Recording) -> Self {
-        let nominal = crate::unstated_nominal().unwrap().into_inner();
+        Self::on(rec, crate::unstated_nominal().unwrap().into_inner())
+    }
+
+    /// The stand for `rec` with `nominal` as its nominal scenario.
+    fn on(rec: Recording, nominal: Scenario) -> Self {
         let split = crate::pipeline::held_out_split(&rec.t_s, None, 3);
         let trace = magstand_sim::replay::replay(&nominal, &rec.t_s, &rec.thr, None, 0.5);
         Self {
@@ -623,9 +627,7 @@ impl TestStand {
     /// The stand with its nominal scenario changed by `change` (as a scenario states it).
     pub(crate) fn with_nominal(mut self, change: impl FnOnce(&mut Scenario)) -> Self {
         change(&mut self.nominal);
-        self.trace =
-            magstand_sim::replay::replay(&self.nominal, &self.rec.t_s, &self.rec.thr, None, 0.5);
-        self
+        Self::on(self.rec, self.nominal)
     }
 
     /// A context of a stand recording (no flight, the supply modelled) at lead 0.5.
