@@ -177,6 +177,15 @@ pub fn cases() -> Vec<Case> {
             false,
             false,
         ),
+        // The other stream late: the commands stamped 0.15 s after they acted, so the field
+        // changes before the logged command that causes it (the thirty-eighth session's; last,
+        // as above).
+        case(
+            "commands logged late 0.15 s",
+            vec![Effect::TimeOffset { delay_s: -0.15 }],
+            false,
+            false,
+        ),
     ]
 }
 

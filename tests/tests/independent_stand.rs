@@ -753,6 +753,44 @@ fn a_late_magnetometer_is_reported_with_its_timing_ambiguity_and_nothing_else() 
     assert!(noted, "{:?}", o.diagnosis.rounds);
 }
 
+/// Regression: commands logged late (stamped 0.15 s after they acted, so that the field
+/// changes before the logged command that causes it) were named `unexplained`, or a
+/// `hysteresis` beside a lag, and the effects beside them were missed: `time_offset` searched
+/// only a late magnetometer. It now searches half a second either way, and a negative delay is
+/// the commands' (`logging.command_delay_s` in the augmented scenario). Checked on the
+/// generator's two first stands, each on a seed of its own.
+#[test]
+fn commands_logged_late_are_a_negative_time_offset() {
+    use magstand_tests::independent::{Mode, run_case_on};
+    for (stand, seed) in [(Stand::default(), 1), (Stand::held_out(), 2)] {
+        let o = run_case_on(
+            &stand,
+            &suite_case("commands logged late 0.15 s"),
+            Mode::Unstated,
+            seed,
+        );
+        assert_named_exactly(&o, &["time_offset"], &format!("seed {seed}"));
+        let p = named_param(&o.diagnosis, "time_offset", "mag_delay_s").expect("the delay");
+        let sd = p.sd.expect("an uncertainty");
+        assert!(
+            (p.value + 0.15).abs() < 3.0 * sd && sd < 0.03,
+            "seed {seed}: delay {} ± {sd} s, generated -0.15 s",
+            p.value
+        );
+        let augmented =
+            magstand_sim::Scenario::from_toml_str(&o.diagnosis.augmented_scenario, "augmented")
+                .expect("the augmented scenario reads");
+        assert_eq!(
+            (
+                augmented.logging.mag_delay_s,
+                augmented.logging.command_delay_s
+            ),
+            (0.0, -p.value),
+            "seed {seed}: the augmented scenario's delays"
+        );
+    }
+}
+
 /// Regression: a dead zone of 0.25 stated as 0.12 was never named (0 of 4 seeds). The
 /// generator's motors draw their idle current whenever they are commanded above zero, within
 /// the dead zone too; magstand's only while the ESC drives them, so its fit put the dead zone

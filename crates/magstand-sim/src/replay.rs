@@ -320,9 +320,11 @@ pub fn replay_behind_lags(
     // the recorded one where given (a measurement: between its rows, a straight line).
     let supply_a =
         |place: (usize, f64), model_a: f64| bat_a.map_or(model_a, |a| interpolate(a, place));
-    // A late magnetometer reads each row at its time less the delay: the places of those times.
-    let delay_s = p.logging.mag_delay_s;
-    let places = (delay_s > 0.0).then(|| locate_increasing(t_s, t_s.iter().map(|&t| t - delay_s)));
+    // A late magnetometer reads each row at its time less the delay, and one whose commands
+    // are logged late at its time plus theirs: the places of those times (past the last
+    // row, the last).
+    let delay_s = p.logging.read_delay_s();
+    let places = (delay_s != 0.0).then(|| locate_increasing(t_s, t_s.iter().map(|&t| t - delay_s)));
     let n_motors = p.motors.count;
     let rows = t_s.len();
     let avionics = p.supply.avionics_current_a();
@@ -1494,6 +1496,12 @@ mod tests {
     /// late rows are from the fine grid's in speed, supply current and the first module's
     /// state.
     fn late_and_fine(extra: &str) -> [LateRead; 3] {
+        late_and_fine_by(extra, 40)
+    }
+
+    /// [`late_and_fine`] with the magnetometer late by `late_ms` (its commands late where
+    /// negative), a whole number of the fine grid's milliseconds within a row interval.
+    fn late_and_fine_by(extra: &str, late_ms: i64) -> [LateRead; 3] {
         let mut s = Scenario::from_toml_str(&format!("{STAIR}\n{extra}"), "t")
             .unwrap()
             .check("t", None)
@@ -1524,23 +1532,29 @@ mod tests {
             .collect();
         let fine = replay(&s, &fine_t, &fine_thr, None, 0.0);
         let undelayed = replay(&s, &t_s, &thr, None, 0.5);
-        let straight = undelayed.delayed(0.04);
-        s.logging.mag_delay_s = 0.04;
+        let late_s = late_ms as f64 * 1e-3;
+        let straight = undelayed.delayed(late_s);
+        s.logging.mag_delay_s = late_s.max(0.0);
+        s.logging.command_delay_s = (-late_s).max(0.0);
         let late = replay(&s, &t_s, &thr, None, 0.5);
-        // Before the first row, the first row's state.
-        assert_eq!(late.speed[0][0], fine.speed[0][0]);
+        if late_ms > 0 {
+            // Before the first row, the first row's state.
+            assert_eq!(late.speed[0][0], fine.speed[0][0]);
+        }
         // The largest differences from the fine grid: of the late read, of the straight line.
         let mut worst = [LateRead::default(); 3];
-        for r in 1..rows {
-            // Row r reads t_r - 0.04: the fine replay's row 100 r - 40; row r is its 100 r.
-            let f = 100 * r - 40;
+        // The last row's read past the replay's end (commands late) is the last state.
+        for r in 1..rows - usize::from(late_ms < 0) {
+            // Row r reads t_r - 0.04 (a late magnetometer): the fine replay's row 100 r - 40;
+            // row r is its 100 r.
+            let f = (100 * r as i64 - late_ms) as usize;
             let mut note = |i: usize, col: fn(&Trace, usize) -> f64| {
                 let w = &mut worst[i];
                 w.late = w.late.max((col(&late, r) - col(&fine, f)).abs());
                 w.straight = w.straight.max((col(&straight, r) - col(&fine, f)).abs());
                 w.aligned = w
                     .aligned
-                    .max((col(&undelayed, r) - col(&fine, f + 40)).abs());
+                    .max((col(&undelayed, r) - col(&fine, 100 * r)).abs());
             };
             note(0, |tr, r| tr.speed[0][r]);
             note(1, |tr, r| tr.total_a[r]);
@@ -1604,6 +1618,28 @@ mod tests {
         assert!(
             temp.late <= 1.5 * temp.aligned,
             "temperature from the fine grid: {temp:?} °C"
+        );
+    }
+
+    /// Commands logged late (`logging.command_delay_s`) read each row at its time plus their
+    /// delay, by the replay's own steps, as a late magnetometer reads it at its time less its
+    /// delay: where nothing couples the motors, the states a finer grid holds at those times;
+    /// where a battery couples them, far closer than the straight line between rows.
+    #[test]
+    fn commands_logged_late_read_the_replays_state_after_each_row() {
+        let [speed, current, _] = late_and_fine_by(
+            "[supply]\nkind = \"bench\"\nvoltage_v = 12.0\n[motors]\nspinup_tau_s = 0.02\n",
+            -40,
+        );
+        assert!(
+            speed.late <= 1e-9 && current.late <= 1e-9,
+            "from the fine grid: speed {speed:?}, current {current:?} A"
+        );
+        let [speed, current, _] = late_and_fine_by("[motors]\nspinup_tau_s = 0.02\n", -40);
+        assert!(
+            speed.straight > 30.0 * speed.late && current.straight > 30.0 * current.late,
+            "the late read is not far closer than the straight line: speed {speed:?}, current \
+             {current:?} A"
         );
     }
 

@@ -61,6 +61,10 @@ pub struct LoggingParams {
     /// Delay of the magnetometer stream against the command stream, s: each row's field was
     /// measured this long before the row's time stamp. Off (0) by default.
     pub mag_delay_s: f64,
+    /// Delay of the command stream against the magnetometer stream, s: each row's commands
+    /// acted this long before the row's time stamp (a logger that stamps a command when it
+    /// is written, after it was sent). Off (0) by default.
+    pub command_delay_s: f64,
     /// Write `bat_v` and `bat_a`.
     pub record_power: bool,
     /// Write `temp_c`.
@@ -73,10 +77,20 @@ pub struct LoggingParams {
     pub record_attitude: bool,
 }
 
+impl LoggingParams {
+    /// How long before its time stamp each row's field was measured, against the time its
+    /// commands acted, s: the magnetometer's delay less the commands'. Negative where the
+    /// commands are logged later than the field.
+    pub fn read_delay_s(&self) -> f64 {
+        self.mag_delay_s - self.command_delay_s
+    }
+}
+
 impl Default for LoggingParams {
     fn default() -> Self {
         Self {
             mag_delay_s: 0.0,
+            command_delay_s: 0.0,
             record_power: true,
             record_temp: false,
             record_imu: false,
@@ -475,6 +489,12 @@ impl Scenario {
         self.stand.check(&c, self.physics_hz)?;
         self.motion.check(&c)?;
         c.range("logging.mag_delay_s", self.logging.mag_delay_s, 0.0, 10.0)?;
+        c.range(
+            "logging.command_delay_s",
+            self.logging.command_delay_s,
+            0.0,
+            10.0,
+        )?;
         self.study.check(&c)?;
         let replay = match &mut self.program {
             ProgramParams::Replay { file } => {

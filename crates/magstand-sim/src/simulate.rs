@@ -148,6 +148,9 @@ struct Run<'a> {
     history: VecDeque<(usize, Snapshot)>,
     rec: Recording,
     commands: Vec<f64>,
+    /// The commands a sample logs where they are logged late (`logging.command_delay_s`):
+    /// the program's at the sample's time less the delay, and the piece they lie in.
+    logged_commands: Option<(Vec<f64>, usize)>,
     currents: Vec<f64>,
     avionics_a: f64,
     total_a: f64,
@@ -238,6 +241,7 @@ impl<'a> Run<'a> {
             history: VecDeque::with_capacity(delay_steps + 1),
             rec,
             commands: vec![0.0; n_motors],
+            logged_commands: (p.logging.command_delay_s > 0.0).then(|| (vec![0.0; n_motors], 0)),
             currents: vec![0.0; n_motors],
             avionics_a,
             total_a: avionics_a,
@@ -334,7 +338,15 @@ impl<'a> Run<'a> {
                 Vec3::from_fn(|a, _| seen.sd[a] * noise_rng.sample::<f64, _>(StandardNormal));
             let rec = &mut self.rec;
             rec.t_s.push(t);
-            for (m, c) in self.commands.iter().enumerate() {
+            let logged = match self.logged_commands.as_mut() {
+                Some((logged, cursor)) => {
+                    let at = t - p.logging.command_delay_s;
+                    self.program.commands_from(at, cursor, logged);
+                    logged
+                }
+                None => &self.commands,
+            };
+            for (m, c) in logged.iter().enumerate() {
                 rec.thr[m].push(*c);
             }
             rec.mag_ut

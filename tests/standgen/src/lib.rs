@@ -233,7 +233,7 @@ pub enum Effect {
     },
     /// The magnetometer stream is late by this much against the commands.
     TimeOffset {
-        /// Delay, s.
+        /// Delay, s: negative where the commands are the stream logged late.
         delay_s: f64,
     },
     /// The current follows the command with a first-order lag (slow ESCs or heavy props).

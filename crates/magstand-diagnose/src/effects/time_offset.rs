@@ -3,16 +3,21 @@ use magstand_sim::Scenario;
 use super::{Context, Effect, EffectFit, Param, searched_params};
 use crate::optimize::Search;
 
-/// The magnetometer stream is logged late against the command stream.
+/// The magnetometer stream is logged late against the command stream, or early (the commands
+/// logged late).
 pub struct TimeOffset;
 
 nonlinear_params! {
     /// The magnetometer stream's lateness.
     Delay {
-        /// Delay of the magnetometer's stamps behind the commands', s.
+        /// Delay of the magnetometer's stamps behind the commands', s: negative where the
+        /// commands' stamps are the late ones.
         mag_delay_s,
     }
 }
+
+/// Longest offset searched either way, s.
+const MAX_OFFSET_S: f64 = 0.5;
 
 impl Effect for TimeOffset {
     fn name(&self) -> &'static str {
@@ -20,7 +25,9 @@ impl Effect for TimeOffset {
     }
     fn explanation(&self) -> &'static str {
         "The magnetometer samples are time-stamped late against the motor commands (logging \
-         latency), so every change in the field appears a fixed time after its cause."
+         latency), so every change in the field appears a fixed time after its cause; where \
+         mag_delay_s is negative, the commands are the stream stamped late, and every change in \
+         the field appears that long before the logged command that caused it."
     }
     fn applies(&self, ctx: &Context) -> bool {
         // A flight's baseline calibrates the delay (`flight.mag_delay_s`).
@@ -41,22 +48,25 @@ impl Effect for TimeOffset {
         Delay::NAMES
     }
     fn search(&self, ctx: &Context) -> Vec<Search> {
-        // From one sample interval (shorter delays cannot be told from where in the interval
-        // a logged command changed, which the baseline calibrates) to half a second, in steps
-        // finer than one sample.
+        // Half a second either way, in steps of about one sample: a logger may stamp either
+        // stream late. (Within an interval of zero, an offset cannot be told from where in
+        // the interval a logged command changed, which the baseline calibrates: its gain there
+        // is none.)
         let dt = ctx.rec.typical_interval_s();
         Vec::from([Search {
             name: "mag_delay_s",
             unit: "s",
-            lo: dt.min(0.25),
-            hi: 0.5,
+            lo: -MAX_OFFSET_S,
+            hi: MAX_OFFSET_S,
             log: false,
-            points: ((0.5 / dt).ceil() as usize + 1).clamp(11, 51),
+            points: ((2.0 * MAX_OFFSET_S / dt).ceil() as usize + 1).clamp(21, 101),
         }])
     }
     fn apply(&self, _ctx: &Context, s: &mut Scenario, theta: &[f64]) {
         if let Some(p) = Delay::from_slice(theta) {
-            s.logging.mag_delay_s = p.mag_delay_s;
+            // A negative offset is the commands' delay: the simulator logs them late.
+            s.logging.mag_delay_s = p.mag_delay_s.max(0.0);
+            s.logging.command_delay_s = (-p.mag_delay_s).max(0.0);
         }
     }
     fn switch_on(&self, ctx: &Context, scenario: &mut Scenario, fitted: &EffectFit) -> Vec<Param> {

@@ -444,7 +444,7 @@ fn simulation_rmse(
     if current_lag_s > 0.0 {
         let lead = super::design::lead_between_reads(
             rec.typical_interval_s(),
-            augmented.params().logging.mag_delay_s,
+            augmented.params().logging.read_delay_s(),
             ctx.command_lead,
         );
         let mut columns: Vec<&mut [f64]> = design.current_law_columns_mut().collect();

@@ -237,7 +237,8 @@ pub(crate) fn build_with_lead(ctx: &Context, terms: &[(&dyn Effect, &[f64])], le
     );
     let mut fixed = trace.extra_ut.clone();
     // The lag runs over the magnetometer's reads: a late one reads between the commands' rows.
-    let read_lead = lead_between_reads(ctx.rec.typical_interval_s(), s.logging.mag_delay_s, lead);
+    let read_lead =
+        lead_between_reads(ctx.rec.typical_interval_s(), s.logging.read_delay_s(), lead);
     let kernel = |tau_s: f64| {
         FieldLag::new(
             &ctx.series_lags,
@@ -342,9 +343,10 @@ pub(crate) fn build_with_lead(ctx: &Context, terms: &[(&dyn Effect, &[f64])], le
 /// a quarter interval before a read of a magnetometer late by whole intervals, and three
 /// quarters before one late by half an interval more). The replay reads a late magnetometer's
 /// rows at their delayed times with each command stepped at its moment; a lag of the field run
-/// over those reads must put each step where the replay did.
+/// over those reads must put each step where the replay did. A negative delay (the commands
+/// logged late) moves the reads the other way.
 pub(crate) fn lead_between_reads(interval_s: f64, delay_s: f64, lead: f64) -> f64 {
-    if !(delay_s > 0.0 && interval_s > 0.0) {
+    if !(delay_s != 0.0 && interval_s > 0.0) {
         return lead;
     }
     (lead - (delay_s / interval_s).fract()).rem_euclid(1.0)
