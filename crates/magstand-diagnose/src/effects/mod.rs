@@ -279,6 +279,14 @@ pub trait Effect: Sync + Send {
         false
     }
 
+    /// Why parameters `theta`, inside their search range, are still none the data can
+    /// determine (a delay within one sample interval of zero, which the command lead the
+    /// baseline calibrates takes), so that a fit there is refused as one at an edge is; None
+    /// where they are determined, as for most effects everywhere inside the range.
+    fn undetermined_at(&self, _ctx: &Context, _theta: &[f64]) -> Option<String> {
+        None
+    }
+
     /// Changes the replayed physics for nonlinear parameters `theta`.
     fn apply(&self, _ctx: &Context, _scenario: &mut Scenario, _theta: &[f64]) {}
 

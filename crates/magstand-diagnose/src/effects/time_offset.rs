@@ -62,6 +62,18 @@ impl Effect for TimeOffset {
             points: ((2.0 * MAX_OFFSET_S / dt).ceil() as usize + 1).clamp(21, 101),
         }])
     }
+    fn undetermined_at(&self, ctx: &Context, theta: &[f64]) -> Option<String> {
+        let dt = ctx.rec.typical_interval_s();
+        let p = Delay::from_slice(theta)?;
+        (p.mag_delay_s.abs() < dt).then(|| {
+            format!(
+                "its mag_delay_s = {:.4} lies within one sample interval ({dt:.4} s) of zero, \
+                 where a delay cannot be told from where in the interval a logged command \
+                 changed (which the baseline calibrates), so the data do not determine it",
+                p.mag_delay_s
+            )
+        })
+    }
     fn apply(&self, _ctx: &Context, s: &mut Scenario, theta: &[f64]) {
         if let Some(p) = Delay::from_slice(theta) {
             // A negative offset is the commands' delay: the simulator logs them late.
@@ -82,5 +94,40 @@ impl Effect for TimeOffset {
             p.sd = p.sd.map(|sd| (sd * sd + dt * dt / 3.0).sqrt());
         }
         params
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::effects::TestStand;
+
+    /// The delay is searched half a second either way; within one sample interval of zero
+    /// (0.04 s here) it is no delay the data determine, on either side, and a negative one is
+    /// switched on as the commands' delay.
+    #[test]
+    fn a_delay_within_an_interval_of_zero_is_undetermined_and_a_negative_one_is_the_commands() {
+        let stand = TestStand::drifting_stair(500);
+        let ctx = stand.context();
+        let [search] = TimeOffset.search(&ctx).try_into().expect("one search");
+        assert_eq!((search.lo, search.hi), (-0.5, 0.5), "{search:?}");
+        for d in [-0.039, 0.0, 0.02, 0.039] {
+            assert!(TimeOffset.undetermined_at(&ctx, &[d]).is_some(), "{d} s");
+        }
+        for d in [-0.3, -0.041, 0.041, 0.3] {
+            assert!(TimeOffset.undetermined_at(&ctx, &[d]).is_none(), "{d} s");
+        }
+        let mut s = ctx.nominal.clone();
+        TimeOffset.apply(&ctx, &mut s, &[-0.2]);
+        assert_eq!(
+            (s.logging.mag_delay_s, s.logging.command_delay_s),
+            (0.0, 0.2)
+        );
+        TimeOffset.apply(&ctx, &mut s, &[0.3]);
+        assert_eq!(
+            (s.logging.mag_delay_s, s.logging.command_delay_s),
+            (0.3, 0.0)
+        );
+        assert_eq!(s.logging.read_delay_s(), 0.3);
     }
 }

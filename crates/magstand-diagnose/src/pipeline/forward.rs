@@ -82,7 +82,8 @@ impl Candidate {
 /// delay a fraction of its gain, and another candidate could take the round (a hysteresis took it on a 0.8 s lag
 /// beside a 0.2 s delay). Only there: the refits cost a search of the lag per delay, in every
 /// round after the lag (0.5 to 0.9 s on the suite's lag-only recordings, whose delay
-/// candidate is significant at the lowest delay on three seeds of four, before the bound).
+/// candidate was significant at the lowest delay of the range it then had, one sample
+/// interval, on three seeds of four; it now sits within an interval of zero).
 fn try_candidate(
     ctx: &Context,
     terms: &[Term],
@@ -98,9 +99,9 @@ fn try_candidate(
     let Some(lag) = slow_lag_beside_delay(ctx, terms, effect) else {
         return held;
     };
-    // A delay held at the lowest of its range is no delay the data determine beside the lag
-    // (the lag-only recordings' candidate sits there): only one within its range is a delay
-    // the lag may have taken part of.
+    // A delay within an interval of zero is no delay the data determine beside the lag (the
+    // lag-only recordings' candidate sits there), nor is one at an edge: only one within its
+    // range is a delay the lag may have taken part of.
     let within = held
         .fitted
         .as_ref()
@@ -763,16 +764,24 @@ fn likelihood_ratio(fall: f64, sd_factor: f64, parameters: usize, significance: 
 }
 
 /// Where a finding's parameter `theta` lies at the edge of its search range, that parameter
-/// and its range, as a reason the data do not determine it; None otherwise, and for a
-/// calibration (a stand constant is reported, not named, and its range is the physical one).
-/// Checked at acceptance and again on the refined parameters.
+/// and its range, as a reason the data do not determine it, or where the effect says so of a
+/// place inside the range ([`Effect::undetermined_at`]: a delay within an interval of zero);
+/// None otherwise, and for a calibration (a stand constant is reported, not named, and its
+/// range is the physical one). Checked at acceptance and again on the refined parameters.
 fn at_edge(ctx: &Context, effect: &dyn Effect, theta: &[f64]) -> Option<String> {
-    edge_of(ctx, effect, theta).map(|(search, v, _)| {
-        format!(
-            "its {} = {v:.4} lies at the edge of its search range [{}, {}], so the data do not determine it",
-            search.name, search.lo, search.hi
-        )
-    })
+    edge_of(ctx, effect, theta)
+        .map(|(search, v, _)| {
+            format!(
+                "its {} = {v:.4} lies at the edge of its search range [{}, {}], so the data do not determine it",
+                search.name, search.lo, search.hi
+            )
+        })
+        .or_else(|| {
+            // Inside the range, where the effect itself cannot be told from the baseline.
+            (!calibrates(effect, ctx, theta))
+                .then(|| effect.undetermined_at(ctx, theta))
+                .flatten()
+        })
 }
 
 /// The first of `effect`'s searched parameters `theta` at the edge of its range ([`at_edge`]):
