@@ -130,7 +130,15 @@ fn parse_cell(path: &Path, row: usize, column: &str, cell: &str) -> Result<f64, 
         row,
         column: column.to_string(),
         found: shown(cell),
-        expected: format!("a finite number of magnitude at most {limit:e}"),
+        expected: match column {
+            // A logger's wall-clock stamps (Unix time, 1.7e9 s in 2025) are the likeliest
+            // times past the limit: say what the column holds and how to get there.
+            "t_s" => format!(
+                "a finite number of magnitude at most {limit:e}: seconds from the recording's \
+                 start or the logger's boot (for Unix time stamps, subtract the first row's)"
+            ),
+            _ => format!("a finite number of magnitude at most {limit:e}"),
+        },
     };
     let v: f64 = cell.trim().parse().map_err(|_| bad())?;
     if crate::within(v, limit) {
@@ -666,6 +674,27 @@ mod tests {
             r.extra,
             vec![("note".to_string(), vec!["a".to_string(), "b".to_string()])]
         );
+    }
+
+    /// A logger's wall-clock stamps (Unix time) are past the time column's limit: the error
+    /// names the file, the row and the column, and says what the column holds and how to get
+    /// there.
+    #[test]
+    fn unix_time_stamps_are_refused_with_how_to_rebase_them() {
+        let e = err("t_s,thr,mag_x_ut,mag_y_ut,mag_z_ut\n\
+                     1764428400.000,0,1,2,3\n\
+                     1764428400.020,0,1,2,3\n");
+        for says in [
+            "r.csv",
+            "row 1",
+            "t_s",
+            "1764428400.000",
+            "subtract the first row's",
+        ] {
+            assert!(e.contains(says), "{says:?} not in: {e}");
+        }
+        let e = err("t_s,thr,mag_x_ut,mag_y_ut,mag_z_ut\n0,0,1,2,3e6\n");
+        assert!(e.contains("mag_z_ut") && !e.contains("subtract"), "{e}");
     }
 
     #[test]
