@@ -1534,8 +1534,7 @@ mod tests {
         let undelayed = replay(&s, &t_s, &thr, None, 0.5);
         let late_s = late_ms as f64 * 1e-3;
         let straight = undelayed.delayed(late_s);
-        s.logging.mag_delay_s = late_s.max(0.0);
-        s.logging.command_delay_s = (-late_s).max(0.0);
+        s.logging.set_read_delay_s(late_s);
         let late = replay(&s, &t_s, &thr, None, 0.5);
         if late_ms > 0 {
             // Before the first row, the first row's state.

@@ -84,6 +84,13 @@ impl LoggingParams {
     pub fn read_delay_s(&self) -> f64 {
         self.mag_delay_s - self.command_delay_s
     }
+
+    /// Sets the delays so that [`LoggingParams::read_delay_s`] is `delay_s`: a positive one the
+    /// magnetometer's, a negative one the commands'.
+    pub fn set_read_delay_s(&mut self, delay_s: f64) {
+        self.mag_delay_s = delay_s.max(0.0);
+        self.command_delay_s = (-delay_s).max(0.0);
+    }
 }
 
 impl Default for LoggingParams {

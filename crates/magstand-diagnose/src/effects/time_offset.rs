@@ -79,8 +79,7 @@ impl Effect for TimeOffset {
     fn apply(&self, _ctx: &Context, s: &mut Scenario, theta: &[f64]) {
         if let Some(p) = Delay::from_slice(theta) {
             // A negative offset is the commands' delay: the simulator logs them late.
-            s.logging.mag_delay_s = p.mag_delay_s.max(0.0);
-            s.logging.command_delay_s = (-p.mag_delay_s).max(0.0);
+            s.logging.set_read_delay_s(p.mag_delay_s);
         }
     }
     fn switch_on(&self, ctx: &Context, scenario: &mut Scenario, fitted: &EffectFit) -> Vec<Param> {

@@ -769,19 +769,18 @@ fn likelihood_ratio(fall: f64, sd_factor: f64, parameters: usize, significance: 
 /// None otherwise, and for a calibration (a stand constant is reported, not named, and its
 /// range is the physical one). Checked at acceptance and again on the refined parameters.
 fn at_edge(ctx: &Context, effect: &dyn Effect, theta: &[f64]) -> Option<String> {
-    edge_of(ctx, effect, theta)
+    if calibrates(effect, ctx, theta) {
+        return None;
+    }
+    search_at_bound(ctx, effect, theta)
         .map(|(search, v, _)| {
             format!(
                 "its {} = {v:.4} lies at the edge of its search range [{}, {}], so the data do not determine it",
                 search.name, search.lo, search.hi
             )
         })
-        .or_else(|| {
-            // Inside the range, where the effect itself cannot be told from the baseline.
-            (!calibrates(effect, ctx, theta))
-                .then(|| effect.undetermined_at(ctx, theta))
-                .flatten()
-        })
+        // Inside the range, where the effect itself cannot be told from the baseline.
+        .or_else(|| effect.undetermined_at(ctx, theta))
 }
 
 /// The first of `effect`'s searched parameters `theta` at the edge of its range ([`at_edge`]):
