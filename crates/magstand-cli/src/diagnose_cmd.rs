@@ -8,7 +8,7 @@ use clap::Args;
 use crate::files;
 use crate::simulate_cmd::load_scenario;
 use magstand_core::recording_csv;
-use magstand_diagnose::{DiagnoseConfig, diagnose, unstated_nominal};
+use magstand_diagnose::{DiagnoseConfig, diagnose_observed, unstated_nominal};
 
 /// Arguments of `magstand diagnose`.
 #[derive(Args)]
@@ -70,7 +70,11 @@ pub fn run(a: DiagnoseArgs) -> Result<()> {
         .num_threads(usize::from(a.threads))
         .build()
         .context("starting the worker threads")?;
-    let d = pool.install(|| diagnose(&rec, &name, &nominal, &config))?;
+    let d = {
+        // Cleared from the terminal before the summary is printed.
+        let spinner = crate::progress::DiagnosisSpinner::new(&name);
+        pool.install(|| diagnose_observed(&rec, &name, &nominal, &config, &spinner))?
+    };
     // Every file first, then the terminal: a reader that closes stdout early must not cost
     // an output.
     let mut wrote = Vec::new();

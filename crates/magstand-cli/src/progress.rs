@@ -66,3 +66,73 @@ impl Drop for RunsBar {
         self.bar.finish_and_clear();
     }
 }
+
+/// Shows what a running diagnosis is doing: its stage, the round and how many of its
+/// candidates are fitted, with the time elapsed. Shared by the worker threads.
+pub struct DiagnosisSpinner {
+    bar: ProgressBar,
+    /// The current round: its title and its candidates' names.
+    round: std::sync::Mutex<(String, String)>,
+}
+
+impl DiagnosisSpinner {
+    /// A spinner labelled `label` (the recording's name).
+    pub fn new(label: &str) -> Self {
+        let bar = ProgressBar::new_spinner();
+        bar.set_style(
+            ProgressStyle::with_template("{prefix} {spinner} {elapsed} {wide_msg}")
+                .expect("constant template"),
+        );
+        bar.set_prefix(label.to_string());
+        bar.enable_steady_tick(std::time::Duration::from_millis(120));
+        Self {
+            bar,
+            round: std::sync::Mutex::new((String::new(), String::new())),
+        }
+    }
+}
+
+impl magstand_diagnose::DiagnoseObserver for DiagnosisSpinner {
+    fn stage(&self, stage: magstand_diagnose::Stage) {
+        use magstand_diagnose::Stage;
+        // A poisoned lock only means a worker panicked; the text is still whole.
+        let mut round = self.round.lock().unwrap_or_else(|e| e.into_inner());
+        // The counts first and the names last, where a narrow terminal cuts the line.
+        let message = match stage {
+            Stage::Baseline => "calibrating the baseline".to_string(),
+            Stage::Round {
+                number,
+                calibration,
+                candidates,
+            } => {
+                let kind = if calibration { " (calibration)" } else { "" };
+                *round = (format!("round {number}{kind}"), candidates.join(", "));
+                format!(
+                    "{}: 0 of {} candidates fitted ({})",
+                    round.0,
+                    candidates.len(),
+                    round.1
+                )
+            }
+            Stage::CandidateFitted { done, of, .. } => {
+                format!(
+                    "{}: {done} of {of} candidates fitted ({})",
+                    round.0, round.1
+                )
+            }
+            Stage::Refining { candidate } => {
+                format!("{}: every term refitted with {candidate}", round.0)
+            }
+            Stage::Assembling => "assembling the final model".to_string(),
+            // A stage this command does not know yet: keep the line as it is.
+            _ => return,
+        };
+        self.bar.set_message(message);
+    }
+}
+
+impl Drop for DiagnosisSpinner {
+    fn drop(&mut self) {
+        self.bar.finish_and_clear();
+    }
+}

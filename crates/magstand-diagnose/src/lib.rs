@@ -70,6 +70,7 @@ mod error;
 mod fit;
 mod locate;
 pub mod model_choice;
+pub mod observer;
 mod optimize;
 mod pipeline;
 mod stats;
@@ -81,8 +82,9 @@ pub use diagnosis::{Diagnosis, UNEXPLAINED};
 pub use effects::{Context, Effect, EffectFit, Param, catalog};
 pub use error::DiagnoseError;
 pub use locate::Location;
+pub use observer::{DiagnoseObserver, Stage};
 pub use optimize::Search;
-pub use pipeline::diagnose;
+pub use pipeline::{diagnose, diagnose_observed};
 
 /// The nominal test stand assumed when no scenario is given: the simulator's defaults (dead
 /// zone 0.37, 920 KV motors, default wiring) on a 12 V bench supply.

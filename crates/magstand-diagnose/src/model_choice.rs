@@ -60,7 +60,14 @@ pub fn fit_physics(
     nominal: &ValidScenario,
     config: &crate::ValidConfig,
 ) -> Result<PhysicsFit, DiagnoseError> {
-    let diagnosis = crate::pipeline::diagnose_with(rec, origin, nominal, config, true)?;
+    let diagnosis = crate::pipeline::diagnose_with(
+        rec,
+        origin,
+        nominal,
+        config,
+        true,
+        &crate::observer::Silent,
+    )?;
     let mut model = diagnosis
         .model
         .clone()

@@ -57,6 +57,13 @@ fn battery_without_bat_v(c: &mut Criterion) {
     g.bench_function("hexa_25k_rows_bench_uncoupled", |b| {
         b.iter(|| replay_logged(&bench, &t_s, &thr, Logged::default(), 0.5))
     });
+    // A late magnetometer on the bench, one command for all motors: each row read a tenth of a
+    // second earlier (a time offset's search replays the recording at dozens of delays).
+    let mut late = bench.clone();
+    late.logging.mag_delay_s = 0.1;
+    g.bench_function("hexa_25k_rows_bench_uncoupled_late_magnetometer", |b| {
+        b.iter(|| replay_logged(&late, &t_s, &one, Logged::default(), 0.5))
+    });
     g.finish();
 }
 

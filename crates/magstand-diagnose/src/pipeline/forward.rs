@@ -4,11 +4,13 @@
 //! repeats until no candidate passes or `max_terms` are in.
 use magstand_core::Vec3;
 use rayon::prelude::*;
+use std::sync::atomic::{AtomicUsize, Ordering};
 
 use crate::diagnosis::{CandidateResult, EffectReport, Round};
 use crate::effects::{Context, Effect};
 use crate::fit::{Fitted, Weights};
 use crate::locate::{Rows, Signal, locate};
+use crate::observer::{DiagnoseObserver, Stage};
 use crate::optimize::{Precision, minimize, minimize_near};
 use crate::{DiagnoseConfig, DiagnoseError};
 
@@ -908,6 +910,7 @@ pub(crate) fn forward_search<'e>(
     base: &BaselineFit,
     rows: &Rows,
     cfg: &DiagnoseConfig,
+    observer: &dyn DiagnoseObserver,
 ) -> Result<SearchOutcome<'e>, DiagnoseError> {
     let rec = ctx.rec;
     let y = &rec.mag_ut;
@@ -982,6 +985,12 @@ pub(crate) fn forward_search<'e>(
             open.retain(|e| is_unstated_constant(*e, ctx) || e.mimics_calibration());
         }
         let shared: &Context = ctx;
+        observer.stage(Stage::Round {
+            number: rounds.len() + 1,
+            calibration: calibration_round,
+            candidates: open.iter().map(|e| e.name().to_string()).collect(),
+        });
+        let fitted_so_far = AtomicUsize::new(0);
         // A calibration round that accepted nothing left the model as it was: its
         // candidates' fits hold for the catalog's round after it.
         let mut tried: Vec<Candidate> = open
@@ -990,7 +999,7 @@ pub(crate) fn forward_search<'e>(
                 let same = |c: &&Candidate| {
                     c.result.name == e.name() && c.result.form.as_deref() == e.variant()
                 };
-                if let Some(c) = unchanged.iter().find(same) {
+                let c = if let Some(c) = unchanged.iter().find(same) {
                     let mut c = c.clone();
                     c.result.note = None;
                     c
@@ -998,7 +1007,13 @@ pub(crate) fn forward_search<'e>(
                     try_candidate(shared, &terms, *e, w, &before, cfg.significance)
                 } else {
                     Candidate::not_fitted(*e, "does not apply to this recording")
-                }
+                };
+                observer.stage(Stage::CandidateFitted {
+                    name: e.name().to_string(),
+                    done: fitted_so_far.fetch_add(1, Ordering::Relaxed) + 1,
+                    of: open.len(),
+                });
+                c
             })
             .collect();
         unchanged.clear();
@@ -1090,6 +1105,9 @@ pub(crate) fn forward_search<'e>(
             }
             break;
         };
+        observer.stage(Stage::Refining {
+            candidate: open[i].name().to_string(),
+        });
         // After a finding, the constants still open are calibrated again first.
         let was_calibrating = std::mem::replace(&mut calibrating, true);
         // The model as it was before this finding, for undoing its acceptance.

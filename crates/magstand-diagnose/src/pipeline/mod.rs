@@ -23,6 +23,7 @@ use crate::diagnosis::Diagnosis;
 use crate::effects::{Context, catalog};
 use crate::fit::Weights;
 use crate::locate::Rows;
+use crate::observer::{DiagnoseObserver, Silent, Stage};
 use crate::{DiagnoseConfig, DiagnoseError, ValidConfig};
 use magstand_core::held_out::Split;
 
@@ -46,7 +47,19 @@ pub fn diagnose(
     nominal: &ValidScenario,
     config: &ValidConfig,
 ) -> Result<Diagnosis, DiagnoseError> {
-    diagnose_with(rec, origin, nominal, config, false)
+    diagnose_observed(rec, origin, nominal, config, &Silent)
+}
+
+/// [`diagnose`], reporting each [`Stage`](crate::Stage) it reaches to `observer` (the
+/// diagnosis is the same, bit for bit).
+pub fn diagnose_observed(
+    rec: &Recording,
+    origin: &str,
+    nominal: &ValidScenario,
+    config: &ValidConfig,
+    observer: &dyn DiagnoseObserver,
+) -> Result<Diagnosis, DiagnoseError> {
+    diagnose_with(rec, origin, nominal, config, false, observer)
 }
 
 /// [`diagnose`], with the replay following the logged supply voltage from the start when
@@ -57,6 +70,7 @@ pub(crate) fn diagnose_with(
     nominal: &ValidScenario,
     config: &ValidConfig,
     follow_recorded_voltage: bool,
+    observer: &dyn DiagnoseObserver,
 ) -> Result<Diagnosis, DiagnoseError> {
     let cfg = config.params();
     let flight = flight::flight_baseline(rec, origin)?;
@@ -97,10 +111,12 @@ pub(crate) fn diagnose_with(
         replays: Default::default(),
         series_lags: Default::default(),
     };
+    observer.stage(Stage::Baseline);
     let base = calibrate_baseline(&mut ctx, cfg)?;
     let rows = Rows::new(rec, &split.block);
     let effects = catalog();
-    let outcome = forward::forward_search(&mut ctx, &effects, &base, &rows, cfg)?;
+    let outcome = forward::forward_search(&mut ctx, &effects, &base, &rows, cfg, observer)?;
+    observer.stage(Stage::Assembling);
     let mut d = assembly::assemble(&ctx, nominal, &base, outcome, &rows, cfg)?;
     if let Some(f) = flight {
         d.baseline.calibration.extend(f.calibration);
