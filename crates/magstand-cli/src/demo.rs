@@ -85,18 +85,23 @@ pub fn run(a: DemoArgs) -> Result<()> {
         .map(|d| Vec3::from(d).norm())
         .unwrap_or(f64::NAN);
     println!("\nOn the validation run (ground truth known):");
+    // As wide as the longest method's name, so the numbers stay in their columns.
+    let w = table
+        .iter()
+        .map(|(name, ..)| name.chars().count())
+        .fold("no compensation".len(), usize::max);
     println!(
-        "{:<42} {:>14} {:>16} {:>12}",
+        "{:<w$} {:>14} {:>16} {:>12}",
         "method", "dist_rmse_ut", "worst_heading_deg", "eq20_rms_%"
     );
     println!(
-        "{:<42} {:>14.3} {:>16.2} {:>12}",
+        "{:<w$} {:>14.3} {:>16.2} {:>12}",
         "no compensation", none, table[0].2.heading_before_max_deg, ""
     );
     for (name, rmse, ev) in &table {
         let e20 = Vec3::from(ev.e20_rms_pct).norm();
         println!(
-            "{name:<42} {rmse:>14.3} {:>16.2} {e20:>12.3}",
+            "{name:<w$} {rmse:>14.3} {:>16.2} {e20:>12.3}",
             ev.heading_after_max_deg
         );
     }

@@ -275,8 +275,14 @@ pub fn summary_table(s: &Summary) -> String {
         "{} runs of {} (seed {}); figures on the validation series against the simulator's truth\n\n",
         s.study.runs, s.study.scenario, s.study.seed
     );
+    // As wide as the longest method's label, so the figures stay in their columns.
+    let w = s
+        .methods
+        .iter()
+        .map(|m| m.label.chars().count())
+        .fold(40, usize::max);
     out += &format!(
-        "{:<40} {:>24} {:>22} {:>10} {:>10} {:>6}\n",
+        "{:<w$} {:>24} {:>22} {:>10} {:>10} {:>6}\n",
         "method",
         "dist_rmse_ut p50 [p5,p95]",
         "heading_after_deg p50",
@@ -288,7 +294,7 @@ pub fn summary_table(s: &Summary) -> String {
         let r = m.figure(FigureId::RmseUt);
         let h = m.figure(FigureId::HeadingAfterDeg);
         out += &format!(
-            "{:<40} {:>24} {:>22} {:>10} {:>10} {:>6}\n",
+            "{:<w$} {:>24} {:>22} {:>10} {:>10} {:>6}\n",
             m.label,
             r.map(|r| format!("{:.3} [{:.3},{:.3}]", r.p50, r.p5, r.p95))
                 .unwrap_or_else(|| "-".into()),
