@@ -31,8 +31,9 @@
 #[derive(Debug, Clone, PartialEq)]
 #[non_exhaustive]
 pub enum Stage {
-    /// The baseline is being calibrated: the nominal physics replayed on the recording's
-    /// commands, and the stand constants nobody stated fitted to it.
+    /// The baseline is being calibrated: a flight's Earth field, offset and delays taken out,
+    /// the nominal physics replayed on the recording's commands, and the stand constants
+    /// nobody stated fitted to it.
     Baseline,
     /// A round of the forward search begins.
     Round {

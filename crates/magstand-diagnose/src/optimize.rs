@@ -297,44 +297,70 @@ pub(crate) fn minimize_to(
 }
 
 /// Values of a grid of `n` points where the search needs them, evaluated in parallel: every
-/// other point first, then the two between which the best of those lies, so that the best of
-/// the whole grid is found wherever the objective varies over more than two grid steps (as
-/// the grids here are sized to resolve), for about half the evaluations. The points not
-/// evaluated are infinite. Grids of fewer than [`COARSE_GRID_POINTS`] points are evaluated
-/// whole.
+/// `stride`th point first ([`coarse_stride`]: every other on the grids of a few dozen points),
+/// then, halving the stride down to one, the two points that far either side of the best so
+/// far, so that the best of the whole grid is found wherever the objective varies over more
+/// than `stride` grid steps (as the grids here are sized to resolve), for a fraction of the
+/// evaluations. The points not evaluated are infinite. Grids of fewer than
+/// [`COARSE_GRID_POINTS`] points are evaluated whole.
 fn coarse_to_fine(n: usize, f: impl Fn(usize) -> f64 + Sync) -> Vec<f64> {
     let mut values = vec![f64::INFINITY; n];
-    let evaluate = |values: &mut Vec<f64>, at: Vec<usize>| {
+    let mut evaluated = vec![false; n];
+    let mut evaluate = |values: &mut Vec<f64>, at: Vec<usize>| {
+        let at: Vec<usize> = at.into_iter().filter(|&i| !evaluated[i]).collect();
         let got: Vec<f64> = at.par_iter().map(|&i| f(i)).collect();
         for (i, v) in at.into_iter().zip(got) {
             values[i] = v;
+            evaluated[i] = true;
         }
     };
     if n < COARSE_GRID_POINTS {
         evaluate(&mut values, (0..n).collect());
         return values;
     }
-    evaluate(&mut values, (0..n).step_by(2).collect());
+    let mut stride = coarse_stride(n);
+    evaluate(&mut values, (0..n).step_by(stride).collect());
     // The first best in grid order, as a scan of the whole grid takes it.
-    let best = (0..n).step_by(2).fold(None, |b: Option<usize>, i| match b {
-        Some(j) if values[j] <= values[i] => Some(j),
-        _ if values[i].is_finite() => Some(i),
-        _ => b,
-    });
-    if let Some(i) = best {
+    let best_of = |values: &[f64]| {
+        (0..n).fold(None, |b: Option<usize>, i| match b {
+            Some(j) if values[j] <= values[i] => Some(j),
+            _ if values[i].is_finite() => Some(i),
+            _ => b,
+        })
+    };
+    if best_of(&values).is_none() {
+        // Nothing could be fitted on the coarse points: the rest may still be.
+        evaluate(&mut values, (0..n).collect());
+        return values;
+    }
+    while stride > 1 {
+        stride /= 2;
+        let i = best_of(&values).expect("a finite value stays");
         evaluate(
             &mut values,
-            [i.checked_sub(1), Some(i + 1).filter(|&j| j < n)]
+            [i.checked_sub(stride), Some(i + stride).filter(|&j| j < n)]
                 .into_iter()
                 .flatten()
                 .collect(),
         );
-    } else {
-        // Nothing could be fitted on the coarse points: the rest may still be.
-        evaluate(&mut values, (1..n).step_by(2).collect());
     }
     values
 }
+
+/// The stride of [`coarse_to_fine`]'s first pass over a grid of `n` points: every other
+/// point, or on a grid long enough to leave [`COARSE_PASS_POINTS`] points at a wider power of
+/// two, that (a late magnetometer's delay at 50 Hz and faster, one point per sample interval
+/// over a second: every fourth, or eighth from 97 points).
+fn coarse_stride(n: usize) -> usize {
+    let mut stride = 2;
+    while n.div_ceil(2 * stride) >= COARSE_PASS_POINTS {
+        stride *= 2;
+    }
+    stride
+}
+
+/// Fewest points the first pass of [`coarse_to_fine`] evaluates at a stride wider than two.
+const COARSE_PASS_POINTS: usize = 13;
 
 /// Fewest grid points searched coarse to fine ([`coarse_to_fine`]).
 const COARSE_GRID_POINTS: usize = 9;
@@ -905,6 +931,43 @@ mod tests {
         let o = minimize(std::slice::from_ref(&s), |t| Some((t[0] - 0.05).powi(2))).unwrap();
         assert!((o.theta[0] - 0.05).abs() < 1e-3, "{o:?}");
         assert!(!s.at_bound(o.theta[0]));
+    }
+
+    #[test]
+    fn a_long_grid_is_searched_from_a_wider_stride_and_finds_its_best_point() {
+        // A late magnetometer's delay at 50 and 100 Hz: 51 and 101 points, every fourth and
+        // eighth first, then two points at each halved stride; shorter grids every other.
+        for (n, stride) in [
+            (9, 2),
+            (31, 2),
+            (41, 2),
+            (49, 4),
+            (51, 4),
+            (76, 4),
+            (101, 8),
+        ] {
+            assert_eq!(coarse_stride(n), stride, "{n} points");
+        }
+        for (n, most) in [(51, 13 + 2 + 2), (101, 13 + 2 + 2 + 2)] {
+            for k in 0..=40 {
+                // Minima on every kind of point, at both ends, and between points; a ripple of
+                // a tenth of a step's rise (the chi-square's kink at each sample interval).
+                let at = k as f64 * (n - 1) as f64 / 40.0 + if k % 3 == 0 { 0.37 } else { 0.0 };
+                let f = |i: usize| {
+                    let x = i as f64 - at;
+                    x.abs() + 0.1 * (i % 2) as f64
+                };
+                let values = coarse_to_fine(n, f);
+                let evaluated = values.iter().filter(|v| v.is_finite()).count();
+                assert!(
+                    evaluated <= most,
+                    "{n} points: {evaluated} evaluations, minimum at {at}"
+                );
+                let best = |v: &[f64]| (0..v.len()).fold(0, |b, i| if v[i] < v[b] { i } else { b });
+                let whole: Vec<f64> = (0..n).map(f).collect();
+                assert_eq!(best(&values), best(&whole), "{n} points, minimum at {at}");
+            }
+        }
     }
 
     #[test]

@@ -73,6 +73,7 @@ pub(crate) fn diagnose_with(
     observer: &dyn DiagnoseObserver,
 ) -> Result<Diagnosis, DiagnoseError> {
     let cfg = config.params();
+    observer.stage(Stage::Baseline);
     let flight = flight::flight_baseline(rec, origin)?;
     let rec = flight.as_ref().map_or(rec, |f| &f.recording);
     // A motor count nobody stated is the recording's own.
@@ -111,7 +112,6 @@ pub(crate) fn diagnose_with(
         replays: Default::default(),
         series_lags: Default::default(),
     };
-    observer.stage(Stage::Baseline);
     let base = calibrate_baseline(&mut ctx, cfg)?;
     let rows = Rows::new(rec, &split.block);
     let effects = catalog();
