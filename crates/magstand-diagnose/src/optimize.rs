@@ -347,10 +347,11 @@ fn coarse_to_fine(n: usize, f: impl Fn(usize) -> f64 + Sync) -> Vec<f64> {
     values
 }
 
-/// The stride of [`coarse_to_fine`]'s first pass over a grid of `n` points: every other
-/// point, or on a grid long enough to leave [`COARSE_PASS_POINTS`] points at a wider power of
-/// two, that (a late magnetometer's delay at 50 Hz and faster, one point per sample interval
-/// over a second: every fourth, or eighth from 97 points).
+/// The stride of [`coarse_to_fine`]'s first pass over a grid of `n` points: the widest power
+/// of two that still leaves [`COARSE_PASS_POINTS`] points, and at least two (every other point
+/// on the grids of a few dozen points). Only a late magnetometer's delay at 48 Hz and faster,
+/// one point per sample interval over a second, is long enough for more: every fourth point,
+/// or every eighth from 97 points.
 fn coarse_stride(n: usize) -> usize {
     let mut stride = 2;
     while n.div_ceil(2 * stride) >= COARSE_PASS_POINTS {
