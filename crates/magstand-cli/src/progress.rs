@@ -98,6 +98,9 @@ impl magstand_diagnose::DiagnoseObserver for DiagnosisSpinner {
         // A poisoned lock only means a worker panicked; the text is still whole.
         let mut round = self.round.lock().unwrap_or_else(|e| e.into_inner());
         // The counts first and the names last, where a narrow terminal cuts the line.
+        let fitted = |(title, names): &(String, String), done: usize, of: usize| {
+            format!("{title}: {done} of {of} candidates fitted ({names})")
+        };
         let message = match stage {
             Stage::Baseline => "calibrating the baseline".to_string(),
             Stage::Round {
@@ -107,19 +110,9 @@ impl magstand_diagnose::DiagnoseObserver for DiagnosisSpinner {
             } => {
                 let kind = if calibration { " (calibration)" } else { "" };
                 *round = (format!("round {number}{kind}"), candidates.join(", "));
-                format!(
-                    "{}: 0 of {} candidates fitted ({})",
-                    round.0,
-                    candidates.len(),
-                    round.1
-                )
+                fitted(&round, 0, candidates.len())
             }
-            Stage::CandidateFitted { done, of, .. } => {
-                format!(
-                    "{}: {done} of {of} candidates fitted ({})",
-                    round.0, round.1
-                )
-            }
+            Stage::CandidateFitted { done, of, .. } => fitted(&round, done, of),
             Stage::Refining { candidate } => {
                 format!("{}: every term refitted with {candidate}", round.0)
             }
