@@ -117,7 +117,8 @@ pub struct FitArgs {
     /// Date for --earth wmm, decimal year (2025.5 is mid-2025); 1900 to 2030.
     #[arg(long)]
     year: Option<f64>,
-    /// Largest delay of the magnetometer behind the commands searched with --earth, s.
+    /// Largest delay searched with --earth, s: the samples' age from 0 up to it, the
+    /// magnetometer's delay behind the commands either way (negative: commands logged late).
     #[arg(long, default_value_t = 0.5)]
     max_delay_s: f64,
     /// With --earth: rows tilted further than this from level (a flip, a crash) are left out,

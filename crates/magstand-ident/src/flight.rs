@@ -49,7 +49,8 @@ pub struct FlightConfig {
     pub earth: EarthField,
     /// Input whose delay is estimated.
     pub input: FlightInput,
-    /// Largest delay searched, s.
+    /// Largest delay searched, s: the samples' age from 0 up to it, the commands' delay
+    /// either way.
     pub max_delay_s: f64,
     /// Rows tilted further from level than this, degrees, are left out: a flip or a crash,
     /// where the vehicle is not flying on its motors as the model assumes.
@@ -80,7 +81,9 @@ pub struct FlightPrep {
     /// Earth field used, north-east-down, µT.
     pub earth_ned_ut: Vec3,
     /// Delay of the magnetometer behind the command stream, s: the inputs of the
-    /// stand-equivalent recording are moved later by it.
+    /// stand-equivalent recording are moved later by it. Negative where the commands are
+    /// logged later than they act (the field changes before the logged command that causes
+    /// it), searched as far that way as the other.
     pub delay_s: f64,
     /// Delay of the magnetometer behind the attitude stream, s: the age of its samples at their
     /// time stamps, by which the Earth field is turned.
@@ -337,12 +340,20 @@ pub fn prepare_flight(
     let dt = rec.typical_interval_s().max(1e-6);
     let steps = ((cfg.max_delay_s / (dt / 2.0)).ceil() as usize).clamp(1, 60);
     let h = cfg.max_delay_s / steps as f64;
-    let search = |rms_at: &dyn Fn(f64) -> f64| {
+    // The samples' age is never negative; the commands' delay is, where they are logged later
+    // than they act (the field changes before the logged command that causes it): its grid
+    // runs as far the other way, with the same step.
+    let search = |signed: bool, rms_at: &dyn Fn(f64) -> f64| {
+        let (lo, points) = if signed {
+            (-cfg.max_delay_s, 2 * steps + 1)
+        } else {
+            (0.0, steps + 1)
+        };
         magstand_core::bounded_search::minimize(
             magstand_core::bounded_search::Grid {
-                lo: 0.0,
+                lo,
                 hi: cfg.max_delay_s,
-                points: steps + 1,
+                points,
             },
             1e-4,
             20,
@@ -360,15 +371,16 @@ pub fn prepare_flight(
     let fit_at = |to_body: &[Matrix3<f64>], input: &[f64]| {
         rms(stacked(rec, to_body, input, cfg.earth, origin))
     };
-    let mut attitude_delay_s =
-        search(&|d| fit_at(&to_body_at(&rec.t_s, att, d), &delayed(&rec.t_s, &u, d)));
+    let mut attitude_delay_s = search(false, &|d| {
+        fit_at(&to_body_at(&rec.t_s, att, d), &delayed(&rec.t_s, &u, d))
+    });
     let mut delay_s = attitude_delay_s;
     for _ in 0..3 {
         // The held stream is turned or moved once per search, not at every delay tried.
         let held = to_body_at(&rec.t_s, att, attitude_delay_s);
-        let command = search(&|d| fit_at(&held, &delayed(&rec.t_s, &u, d)));
+        let command = search(true, &|d| fit_at(&held, &delayed(&rec.t_s, &u, d)));
         let input = delayed(&rec.t_s, &u, command);
-        let attitude = search(&|d| fit_at(&to_body_at(&rec.t_s, att, d), &input));
+        let attitude = search(false, &|d| fit_at(&to_body_at(&rec.t_s, att, d), &input));
         let moved = (command - delay_s)
             .abs()
             .max((attitude - attitude_delay_s).abs());
@@ -439,6 +451,12 @@ pub fn prepare_flight(
                 2.0 * sd
             ));
         }
+    }
+    if delay_s <= -cfg.max_delay_s + 0.5 * h {
+        warnings.push(format!(
+            "{origin}: the best delay is at the end of the search ({:.3} s): the commands are logged later than they act by more (raise `max_delay_s`), or the delay is not identifiable from this log",
+            -cfg.max_delay_s
+        ));
     }
     if delay_s.max(attitude_delay_s) >= cfg.max_delay_s - 0.5 * h {
         warnings.push(format!(
@@ -685,6 +703,45 @@ mod tests {
             "{:?} vs {earth:?}, residual {} µT",
             p.earth_ned_ut,
             p.residual_rms_ut
+        );
+    }
+
+    #[test]
+    fn commands_logged_late_are_a_negative_command_delay() {
+        // Commands stamped 0.15 s after they acted: the field changes before the logged
+        // command that causes it. A search from zero up held the delay at zero and left the
+        // timing's misfit in the stand-equivalent recording.
+        for (age_s, late_s) in [(0.0, 0.15), (0.1, 0.25)] {
+            let (rec, earth) = late_flight(age_s, -late_s);
+            let p = prepare_flight(&rec, &FlightConfig::default(), "late-commands").unwrap();
+            let expected = age_s - late_s;
+            assert!(
+                (p.delay_s - expected).abs() < 0.01 && (p.attitude_delay_s - age_s).abs() < 0.01,
+                "commands {late_s} s late, samples {age_s} s old: command delay {} s ({expected} \
+                 expected), attitude delay {} s",
+                p.delay_s,
+                p.attitude_delay_s
+            );
+            assert!(
+                (p.earth_ned_ut - earth).norm() < 0.05 && p.residual_rms_ut < 0.05,
+                "{:?} vs {earth:?}, residual {} µT",
+                p.earth_ned_ut,
+                p.residual_rms_ut
+            );
+            assert!(p.warnings.is_empty(), "{:?}", p.warnings);
+        }
+        // Later than the search reaches: flagged at its far end.
+        let (rec, _) = late_flight(0.0, -0.3);
+        let cfg = FlightConfig {
+            max_delay_s: 0.1,
+            ..FlightConfig::default()
+        };
+        let p = prepare_flight(&rec, &cfg, "very-late").unwrap();
+        assert!(
+            p.warnings.len() == 1 && p.warnings[0].contains("logged later than they act"),
+            "{} {:?}",
+            p.delay_s,
+            p.warnings
         );
     }
 
