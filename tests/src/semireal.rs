@@ -3,13 +3,15 @@
 //! written at the log's own resolution. Each copy's diagnosis must differ from the unaltered
 //! log's in the injected effect and only there: its name is added (or, for a late
 //! magnetometer on a flight, whose delay the baseline calibrates, `flight.mag_delay_s` moves by
-//! the injected delay), no other name is added and none is lost.
+//! the injected delay, and for commands logged late `flight.command_delay_s` falls by it), no
+//! other name is added and none is lost.
 //!
 //! The effects are added by this module's own laws (a first-order lag, a play operator, a
 //! heating lag of the logged power), not by magstand's simulator.
 use std::collections::BTreeSet;
 use std::path::PathBuf;
 
+use magstand_core::interpolation::{interpolate, locate_increasing};
 use magstand_core::{Recording, Vec3};
 use magstand_diagnose::{DiagnoseConfig, Diagnosis, diagnose, unstated_nominal};
 use magstand_logs::import::{ImportOptions, import_file};
@@ -74,6 +76,12 @@ pub enum Injection {
         /// Delay, s.
         delay_s: f64,
     },
+    /// The motor commands stamped `delay_s` late (a logger that stamps a command when it
+    /// writes it): each row's commands are those that acted `delay_s` before it.
+    CommandsLate {
+        /// Delay, s.
+        delay_s: f64,
+    },
     /// The field follows the current through a first-order lag: `g (lag(I) - I)` added.
     CurrentLag {
         /// Time constant, s.
@@ -103,7 +111,7 @@ impl Injection {
     /// The catalog name a diagnosis should add.
     pub fn name(&self) -> &'static str {
         match self {
-            Injection::MagLate { .. } => "time_offset",
+            Injection::MagLate { .. } | Injection::CommandsLate { .. } => "time_offset",
             Injection::CurrentLag { .. } => "current_lag",
             Injection::Hysteresis { .. } => "hysteresis",
             Injection::BoardHeating { .. } => "thermal_drift",
@@ -114,6 +122,7 @@ impl Injection {
     pub fn label(&self) -> String {
         match self {
             Injection::MagLate { delay_s } => format!("magnetometer {delay_s} s late"),
+            Injection::CommandsLate { delay_s } => format!("commands {delay_s} s late"),
             Injection::CurrentLag { tau_s, .. } => format!("{tau_s} s current lag"),
             Injection::Hysteresis { play_a, .. } => format!("±{play_a} A hysteresis"),
             Injection::BoardHeating { peak_ut, .. } => format!(
@@ -126,7 +135,7 @@ impl Injection {
     /// Whether the log can carry it (current-driven effects need `bat_a`).
     pub fn applies(&self, rec: &Recording) -> bool {
         match self {
-            Injection::MagLate { .. } => true,
+            Injection::MagLate { .. } | Injection::CommandsLate { .. } => true,
             _ => rec.bat_a.is_some(),
         }
     }
@@ -141,6 +150,13 @@ impl Injection {
                     .iter()
                     .map(|&x| interpolate_at(t, &rec.mag_ut, x - delay_s))
                     .collect();
+                vec![Vec3::zeros(); t.len()]
+            }
+            Injection::CommandsLate { delay_s } => {
+                let places = locate_increasing(t, t.iter().map(|&x| x - delay_s));
+                for column in out.thr.iter_mut() {
+                    *column = places.iter().map(|&p| interpolate(column, p)).collect();
+                }
                 vec![Vec3::zeros(); t.len()]
             }
             Injection::CurrentLag { tau_s, ut_per_a } => {
@@ -183,6 +199,7 @@ impl Injection {
 pub fn injections() -> Vec<Injection> {
     vec![
         Injection::MagLate { delay_s: 0.3 },
+        Injection::CommandsLate { delay_s: 0.2 },
         Injection::CurrentLag {
             tau_s: 0.5,
             ut_per_a: [0.2, -0.15, 0.3],
@@ -203,6 +220,7 @@ pub fn injections() -> Vec<Injection> {
 pub fn held_out_injections() -> Vec<Injection> {
     vec![
         Injection::MagLate { delay_s: 0.2 },
+        Injection::CommandsLate { delay_s: 0.15 },
         Injection::CurrentLag {
             tau_s: 0.8,
             ut_per_a: [-0.25, 0.2, 0.15],
@@ -321,6 +339,23 @@ pub fn judge(
         // Half a sample interval is the resolution of the delay.
         let tolerance = (0.5 * interval_s).max(0.03);
         return ((b - a - delay_s).abs() <= tolerance, shown);
+    }
+    // Commands logged late: on a flight the magnetometer's delay behind them falls by as
+    // much (calibrated, not named).
+    if let (Injection::CommandsLate { delay_s }, Some(a), Some(b)) = (
+        injection,
+        calibrated(original, "flight.command_delay_s"),
+        calibrated(copy, "flight.command_delay_s"),
+    ) {
+        let shown = format!("flight.command_delay_s {a:.3} -> {b:.3} s (injected -{delay_s} s)");
+        if interval_s >= *delay_s {
+            return (
+                false,
+                format!("{shown}; rows {interval_s:.2} s apart cannot resolve the delay"),
+            );
+        }
+        let tolerance = (0.5 * interval_s).max(0.03);
+        return ((a - b - delay_s).abs() <= tolerance, shown);
     }
     if added.contains(&injection.name()) {
         return (true, format!("{} added", injection.name()));
@@ -474,7 +509,7 @@ fn confusion(outcomes: &[Outcome]) -> String {
         false_alarms += lost;
     }
     let mut s = format!(
-        "\nConfusion: rows are the effects injected, columns the names added to the unaltered log's verdict (a late magnetometer on a flight is told apart by its calibrated delay, not by a name).\n\n| injected | copies | {} | unexplained | names lost |\n|---|---|{}---|---|\n",
+        "\nConfusion: rows are the effects injected, columns the names added to the unaltered log's verdict (a late magnetometer or late commands on a flight are told apart by the calibrated delay, not by a name).\n\n| injected | copies | {} | unexplained | names lost |\n|---|---|{}---|---|\n",
         names.join(" | "),
         "---|".repeat(names.len())
     );

@@ -1,8 +1,12 @@
 //! Real flight logs as they are and with a known effect added (the fast subset of
 //! `cargo run --release -p magstand-tests --bin semireal-suite`, results/diagnosis-semireal.md):
 //! ArduPilot log171 is diagnosed on its flight baseline (Earth field turned by the attitude,
-//! offset, delay), and its copies with the magnetometer stream 0.3 s late, a 0.5 s current
-//! lag and a ±2 A hysteresis differ from it in the injected effect only.
+//! offset, delay), and its copies with the magnetometer stream 0.3 s late, the commands 0.2 s
+//! late, a 0.5 s current lag and a ±2 A hysteresis differ from it in the injected effect only.
+//!
+//! Regression: the commands 0.2 s late were not told apart at all (the same verdict, the
+//! delay behind the commands at 0 instead of 0.025 s): the flight preparation searched that
+//! delay from 0 up only.
 //!
 //! Regression: the late copy lost `motor_asymmetry`, and the lag and the hysteresis were not
 //! named (0 of 8 copies told apart), because the Earth field was turned by the attitude at the
