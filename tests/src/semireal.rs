@@ -324,13 +324,19 @@ pub fn judge(
     if !removed.is_empty() {
         return (false, format!("names lost: {}", removed.join(", ")));
     }
-    if let (Injection::MagLate { delay_s }, Some(a), Some(b)) = (
-        injection,
-        calibrated(original, "flight.mag_delay_s"),
-        calibrated(copy, "flight.mag_delay_s"),
-    ) {
-        let shown = format!("flight.mag_delay_s {a:.3} -> {b:.3} s (injected +{delay_s} s)");
-        if interval_s >= *delay_s {
+    // A late stream on a flight is calibrated, not named: the magnetometer's delay behind the
+    // attitude grows by a late magnetometer's lateness, its delay behind the commands falls
+    // by late commands'.
+    let timing = match *injection {
+        Injection::MagLate { delay_s } => Some(("flight.mag_delay_s", delay_s)),
+        Injection::CommandsLate { delay_s } => Some(("flight.command_delay_s", -delay_s)),
+        _ => None,
+    };
+    if let Some((name, moved_s)) = timing
+        && let (Some(a), Some(b)) = (calibrated(original, name), calibrated(copy, name))
+    {
+        let shown = format!("{name} {a:.3} -> {b:.3} s (injected {moved_s:+} s)");
+        if interval_s >= moved_s.abs() {
             return (
                 false,
                 format!("{shown}; rows {interval_s:.2} s apart cannot resolve the delay"),
@@ -338,24 +344,7 @@ pub fn judge(
         }
         // Half a sample interval is the resolution of the delay.
         let tolerance = (0.5 * interval_s).max(0.03);
-        return ((b - a - delay_s).abs() <= tolerance, shown);
-    }
-    // Commands logged late: on a flight the magnetometer's delay behind them falls by as
-    // much (calibrated, not named).
-    if let (Injection::CommandsLate { delay_s }, Some(a), Some(b)) = (
-        injection,
-        calibrated(original, "flight.command_delay_s"),
-        calibrated(copy, "flight.command_delay_s"),
-    ) {
-        let shown = format!("flight.command_delay_s {a:.3} -> {b:.3} s (injected -{delay_s} s)");
-        if interval_s >= *delay_s {
-            return (
-                false,
-                format!("{shown}; rows {interval_s:.2} s apart cannot resolve the delay"),
-            );
-        }
-        let tolerance = (0.5 * interval_s).max(0.03);
-        return ((a - b - delay_s).abs() <= tolerance, shown);
+        return ((b - a - moved_s).abs() <= tolerance, shown);
     }
     if added.contains(&injection.name()) {
         return (true, format!("{} added", injection.name()));
