@@ -177,7 +177,7 @@ fn take_out_earth_field(
     let p = prepare_flight(rec, &cfg, origin)?;
     let e = p.earth_ned_ut;
     let summary = format!(
-        "Earth field ({}): N {:.2} E {:.2} D {:.2} uT (|e| {:.2} uT, inclination {:.1} deg); magnetometer samples {:.3} s behind the attitude and {:.3} s behind the {}; stacked-fit residual {:.2} uT RMS; attitude: tilt up to {:.0} deg, {:.0} deg of heading covered",
+        "Earth field ({}): N {:.2} E {:.2} D {:.2} uT (|e| {:.2} uT, inclination {:.1} deg); magnetometer samples {:.3} s behind the attitude and {}; stacked-fit residual {:.2} uT RMS; attitude: tilt up to {:.0} deg, {:.0} deg of heading covered",
         model_name,
         e.x,
         e.y,
@@ -185,10 +185,20 @@ fn take_out_earth_field(
         e.norm(),
         e.z.atan2(e.xy().norm()).to_degrees(),
         p.attitude_delay_s,
-        p.delay_s,
-        match cfg.input {
-            FlightInput::Current => "current",
-            FlightInput::Throttle => "commands",
+        {
+            let input = match cfg.input {
+                FlightInput::Current => "current",
+                FlightInput::Throttle => "commands",
+            };
+            // A negative delay: the input is logged after it acted.
+            if p.delay_s < 0.0 {
+                format!(
+                    "{:.3} s ahead of the {input} (the {input} logged late)",
+                    -p.delay_s
+                )
+            } else {
+                format!("{:.3} s behind the {input}", p.delay_s)
+            }
         },
         p.residual_rms_ut,
         p.attitude_span_deg.0,

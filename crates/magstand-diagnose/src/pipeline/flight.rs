@@ -79,7 +79,7 @@ pub(crate) fn flight_baseline(
             "flight.command_delay_s",
             prep.delay_s,
             None,
-            "s (magnetometer behind the commands: the samples' age and the motors' lag)",
+            "s (magnetometer behind the commands: the samples' age and the motors' lag; negative where the commands are logged after they act)",
         ),
     ];
     Ok(Some(FlightBaseline {
