@@ -434,7 +434,9 @@ pub fn prepare_flight(
     let yaw_span = yaw_coverage_deg(att);
     let mut warnings = Vec::new();
     // The relative margin keeps rows exactly half the search apart from warning on rounding.
-    if dt > 0.5 * cfg.max_delay_s * (1.0 + 1e-9) {
+    // No search (a `max_delay_s` of 0) has no resolution to lack and no end to be at.
+    let searched = cfg.max_delay_s > 0.0;
+    if searched && dt > 0.5 * cfg.max_delay_s * (1.0 + 1e-9) {
         warnings.push(format!(
             "{origin}: the magnetometer rows are {dt:.2} s apart, so a delay below {:.2} s cannot be resolved; the delay found ({delay_s:.3} s) rests on interpolation between rows",
             cfg.max_delay_s
@@ -452,13 +454,13 @@ pub fn prepare_flight(
             ));
         }
     }
-    if delay_s <= -cfg.max_delay_s + 0.5 * h {
+    if searched && delay_s <= -cfg.max_delay_s + 0.5 * h {
         warnings.push(format!(
             "{origin}: the best delay is at the end of the search ({:.3} s): the commands are logged later than they act by more (raise `max_delay_s`), or the delay is not identifiable from this log",
             -cfg.max_delay_s
         ));
     }
-    if delay_s.max(attitude_delay_s) >= cfg.max_delay_s - 0.5 * h {
+    if searched && delay_s.max(attitude_delay_s) >= cfg.max_delay_s - 0.5 * h {
         warnings.push(format!(
             "{origin}: the best delay is at the end of the search ({:.3} s): the magnetometer lags more (raise `max_delay_s`), or the delay is not identifiable from this log",
             cfg.max_delay_s
@@ -730,6 +732,20 @@ mod tests {
             );
             assert!(p.warnings.is_empty(), "{:?}", p.warnings);
         }
+        // No search at all: no delay, and no end of a search to warn of.
+        let (rec, _) = late_flight(0.0, 0.0);
+        let none = FlightConfig {
+            max_delay_s: 0.0,
+            ..FlightConfig::default()
+        };
+        let p = prepare_flight(&rec, &none, "on-time").unwrap();
+        assert!(
+            p.delay_s == 0.0 && p.attitude_delay_s == 0.0 && p.warnings.is_empty(),
+            "{} {} {:?}",
+            p.delay_s,
+            p.attitude_delay_s,
+            p.warnings
+        );
         // Later than the search reaches: flagged at its far end.
         let (rec, _) = late_flight(0.0, -0.3);
         let cfg = FlightConfig {
