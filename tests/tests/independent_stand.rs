@@ -1609,3 +1609,32 @@ fn a_battery_and_a_lag_are_named_alone_where_the_motors_follow_the_logged_voltag
 fn a_battery_and_a_lag_are_named_alone_where_the_lag_is_refined_under_its_models_weights() {
     battery_and_lag_named_with_the_lag_where_it_is(magstand_tests::independent::Mode::Stated);
 }
+
+/// Commands logged at a third of the magnetometer's rate and held between its rows (each
+/// change shows zero to two rows late) were named, beside a slow lag, `hysteresis` and
+/// `unexplained` without a word on the timing: the diagnosis now says what it sees in its
+/// warnings. The recording without the hold gets no such warning.
+#[test]
+fn commands_held_over_rows_are_said_in_the_warnings() {
+    let (rec, _) = recording(&suite_case("current lag 0.5 s"), 1);
+    let rec = rec.select_rows(|r| r < 9000);
+    let mut held = rec.clone();
+    for column in held.thr.iter_mut() {
+        let logged = column.clone();
+        for (r, c) in column.iter_mut().enumerate() {
+            *c = logged[r - r % 3];
+        }
+    }
+    let config = magstand_diagnose::DiagnoseConfig::default()
+        .check()
+        .unwrap();
+    let nominal = magstand_diagnose::unstated_nominal().unwrap();
+    for (what, rec, expected) in [("as generated", &rec, false), ("held", &held, true)] {
+        let d = magstand_diagnose::diagnose(rec, "held.csv", &nominal, &config).unwrap();
+        let said = d
+            .warnings
+            .iter()
+            .any(|w| w.contains("held.csv") && w.contains("multiple of 3 rows"));
+        assert_eq!(said, expected, "{what}: warnings {:?}", d.warnings);
+    }
+}

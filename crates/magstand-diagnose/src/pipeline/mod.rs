@@ -14,7 +14,8 @@
 //! A flight log first goes through [`flight`]: the Earth field turned by the logged attitude,
 //! the sensor offset and the magnetometer's delay are taken out, and the stand-equivalent
 //! recording is diagnosed. [`diagnose`] then checks the recording against the nominal stand,
-//! calibrates the baseline and runs the stages in order.
+//! calibrates the baseline and runs the stages in order; [`command_hold`] adds a warning
+//! where a stand recording's commands look held over several rows.
 use magstand_core::Recording;
 use magstand_sim::replay::{Logged, Trace, replay_logged};
 use magstand_sim::{Scenario, ValidScenario};
@@ -28,6 +29,7 @@ use crate::{DiagnoseConfig, DiagnoseError, ValidConfig};
 use magstand_core::held_out::Split;
 
 pub(crate) mod assembly;
+pub(crate) mod command_hold;
 pub(crate) mod design;
 pub(crate) mod flight;
 pub(crate) mod forward;
@@ -118,6 +120,12 @@ pub(crate) fn diagnose_with(
     let outcome = forward::forward_search(&mut ctx, &effects, &base, &rows, cfg, observer)?;
     observer.stage(Stage::Assembling);
     let mut d = assembly::assemble(&ctx, nominal, &base, outcome, &rows, cfg)?;
+    // A flight's commands come from the import, interpolated at the magnetometer's times.
+    if flight.is_none()
+        && let Some(hold) = command_hold::held_commands(&rec.thr)
+    {
+        d.warnings.push(command_hold::warning(origin, hold));
+    }
     if let Some(f) = flight {
         d.baseline.calibration.extend(f.calibration);
         // The flight's doubts first: they qualify everything after them.
