@@ -16,7 +16,9 @@ const MAX_HOLD_ROWS: usize = 10;
 /// Fewest different spacings between changes: a program stepped on a clock (a stair of one
 /// dwell, logged at a rate that divides it) changes on rows a whole number apart as well,
 /// every change on time; a logger's hold catches changes made at any moment, a whole number
-/// of its rows apart but irregularly so.
+/// of its rows apart but irregularly so. (A program of irregular dwells on a clock, whole
+/// tenths of a second at 50 Hz, cannot be told from a hold by the commands alone: the warning
+/// names both.)
 const MIN_SPACINGS: usize = 3;
 
 /// Where every change of the logged commands (any motor's) falls on rows a whole number of
@@ -48,7 +50,7 @@ pub(crate) fn held_commands(thr: &[Vec<f64>]) -> Option<(usize, usize)> {
 /// The diagnosis's warning for commands held over `k` rows with `changes` changes.
 pub(crate) fn warning(origin: &str, (k, changes): (usize, usize)) -> String {
     format!(
-        "{origin}: every change of the commands ({changes} of them) falls a whole multiple of {k} rows after the one before: they look logged at 1/{k} of the magnetometer's rate and held between, so each change shows 0 to {} rows after it acted; a `time_offset`, `current_lag`, `hysteresis` or `unexplained` named here may be that lateness rather than physics (log the commands at the magnetometer's rate, or with their own time stamps)",
+        "{origin}: every change of the commands ({changes} of them) falls a whole multiple of {k} rows after the one before: either they are logged at 1/{k} of the magnetometer's rate and held between, and each change shows 0 to {} rows after it acted, so a `time_offset`, `current_lag`, `hysteresis` or `unexplained` named here may be that lateness rather than physics (log the commands at the magnetometer's rate, or with their own time stamps), or the program steps on a clock of 1/{k} of that rate, and nothing is amiss",
         k - 1
     )
 }
