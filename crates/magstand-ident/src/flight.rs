@@ -688,15 +688,17 @@ mod tests {
         );
     }
 
-    #[test]
-    fn samples_stamped_late_move_the_attitude_and_the_commands_alike() {
-        // Before the attitude was delayed too, a late stream left the Earth field's turning
-        // 0.15 s out of step: tens of µT of residual at every turn, and a delay between.
-        let (rec, earth) = late_flight(0.15, 0.05);
+    /// Asserts that a [`late_flight`] of `age_s` and `delay_s` is prepared with both delays
+    /// (the attitude's `age_s`, the commands' their sum) and the Earth field recovered, and
+    /// no warning.
+    fn assert_both_delays_recovered(age_s: f64, delay_s: f64) {
+        let (rec, earth) = late_flight(age_s, delay_s);
         let p = prepare_flight(&rec, &FlightConfig::default(), "late").unwrap();
+        let command_s = age_s + delay_s;
         assert!(
-            (p.attitude_delay_s - 0.15).abs() < 0.01 && (p.delay_s - 0.2).abs() < 0.01,
-            "attitude delay {} s (0.15 expected), command delay {} s (0.2 expected)",
+            (p.attitude_delay_s - age_s).abs() < 0.01 && (p.delay_s - command_s).abs() < 0.01,
+            "samples {age_s} s old, disturbance {delay_s} s behind them: attitude delay {} s \
+             ({age_s} expected), command delay {} s ({command_s} expected)",
             p.attitude_delay_s,
             p.delay_s
         );
@@ -706,6 +708,14 @@ mod tests {
             p.earth_ned_ut,
             p.residual_rms_ut
         );
+        assert!(p.warnings.is_empty(), "{:?}", p.warnings);
+    }
+
+    #[test]
+    fn samples_stamped_late_move_the_attitude_and_the_commands_alike() {
+        // Before the attitude was delayed too, a late stream left the Earth field's turning
+        // 0.15 s out of step: tens of µT of residual at every turn, and a delay between.
+        assert_both_delays_recovered(0.15, 0.05);
     }
 
     #[test]
@@ -713,26 +723,14 @@ mod tests {
         // Commands stamped 0.15 s after they acted: the field changes before the logged
         // command that causes it. A search from zero up held the delay at zero and left the
         // timing's misfit in the stand-equivalent recording.
-        for (age_s, late_s) in [(0.0, 0.15), (0.1, 0.25)] {
-            let (rec, earth) = late_flight(age_s, -late_s);
-            let p = prepare_flight(&rec, &FlightConfig::default(), "late-commands").unwrap();
-            let expected = age_s - late_s;
-            assert!(
-                (p.delay_s - expected).abs() < 0.01 && (p.attitude_delay_s - age_s).abs() < 0.01,
-                "commands {late_s} s late, samples {age_s} s old: command delay {} s ({expected} \
-                 expected), attitude delay {} s",
-                p.delay_s,
-                p.attitude_delay_s
-            );
-            assert!(
-                (p.earth_ned_ut - earth).norm() < 0.05 && p.residual_rms_ut < 0.05,
-                "{:?} vs {earth:?}, residual {} µT",
-                p.earth_ned_ut,
-                p.residual_rms_ut
-            );
-            assert!(p.warnings.is_empty(), "{:?}", p.warnings);
-        }
-        // No search at all: no delay, and no end of a search to warn of.
+        assert_both_delays_recovered(0.0, -0.15);
+        assert_both_delays_recovered(0.1, -0.25);
+    }
+
+    #[test]
+    fn no_delay_searched_is_no_delay_and_no_warning() {
+        // With the commands' delay signed, a `max_delay_s` of 0 sat at both ends of its
+        // search and warned twice, and below the row spacing once more.
         let (rec, _) = late_flight(0.0, 0.0);
         let none = FlightConfig {
             max_delay_s: 0.0,
@@ -744,19 +742,6 @@ mod tests {
             "{} {} {:?}",
             p.delay_s,
             p.attitude_delay_s,
-            p.warnings
-        );
-        // Later than the search reaches: flagged at its far end.
-        let (rec, _) = late_flight(0.0, -0.3);
-        let cfg = FlightConfig {
-            max_delay_s: 0.1,
-            ..FlightConfig::default()
-        };
-        let p = prepare_flight(&rec, &cfg, "very-late").unwrap();
-        assert!(
-            p.warnings.len() == 1 && p.warnings[0].contains("logged later than they act"),
-            "{} {:?}",
-            p.delay_s,
             p.warnings
         );
     }
@@ -783,19 +768,26 @@ mod tests {
 
     #[test]
     fn a_delay_beyond_the_search_or_below_the_row_spacing_is_flagged() {
-        // Seen 0.3 s late, searched up to 0.1 s: the best delay sits at the end of the search.
-        let (rec, _) = flight(0.3);
+        // Seen 0.3 s late, or the commands logged 0.3 s late, searched up to 0.1 s either
+        // way: the best delay sits at that end of the search.
         let cfg = FlightConfig {
             max_delay_s: 0.1,
             ..FlightConfig::default()
         };
-        let p = prepare_flight(&rec, &cfg, "late").unwrap();
-        assert!(
-            p.warnings.len() == 1 && p.warnings[0].contains("end of the search"),
-            "{} {:?}",
-            p.delay_s,
-            p.warnings
-        );
+        for (delay_s, says) in [
+            (0.3, "the magnetometer lags more"),
+            (-0.3, "logged later than they act"),
+        ] {
+            let (rec, _) = flight(delay_s);
+            let p = prepare_flight(&rec, &cfg, "late").unwrap();
+            assert!(
+                p.warnings.len() == 1 && p.warnings[0].contains(says),
+                "{delay_s} s: {} {:?}",
+                p.delay_s,
+                p.warnings
+            );
+        }
+        let (rec, _) = flight(0.3);
         // Rows 1 s apart (as in PX4 logs at 1 Hz) cannot resolve a delay under 0.5 s.
         let sparse = rec.select_rows(|r| r % 20 == 0);
         let p = prepare_flight(&sparse, &FlightConfig::default(), "sparse").unwrap();
