@@ -444,7 +444,7 @@ fn read_from(reader: impl Read, path: &Path) -> Result<Recording, CoreError> {
     Ok(rec)
 }
 
-/// Header names of a recording, in the order [`write`] puts them.
+/// Header names of a recording, in the order [`write()`] puts them.
 pub fn header(rec: &Recording) -> Vec<String> {
     let mut h = vec!["t_s".to_string()];
     if rec.overall_only && rec.thr.len() == 1 {
@@ -644,7 +644,7 @@ pub fn stage(rec: &Recording, path: impl AsRef<Path>) -> Result<atomic_file::Sta
     atomic_file::stage_with(&path, |w| write_to(rec, w, &path))
 }
 
-/// Formats a number the way [`write`] formats extra numeric columns (6 decimals, no -0).
+/// Formats a number the way [`write()`] formats extra numeric columns (6 decimals, no -0).
 pub fn format_extra(x: f64) -> String {
     let mut s = String::new();
     crate::fixed_decimal::push_fixed(&mut s, x + 0.0, 6);

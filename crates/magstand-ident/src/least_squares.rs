@@ -385,7 +385,7 @@ const LANES: usize = 16;
 /// whose weight is not positive skips the row, as [`NormalEquations::add`] does).
 ///
 /// The rows are gathered a block at a time, column by column, and each pair of columns is
-/// summed over the block in [`LANES`] partial sums: several times faster than
+/// summed over the block in `LANES` partial sums: several times faster than
 /// [`SharedRowEquations::add`] row by row on a wide design. The sums differ from its in their
 /// last bits only (another order of the same additions); they do not depend on the thread
 /// count or the machine's vector width.

@@ -4,7 +4,7 @@
 //!
 //! A module has a state, advances it with the electrical state, adds a field at the sensor,
 //! and names the trace column its state is recorded in. Its parameters, a scenario table, say
-//! how they are checked and build the module ([`ModuleParams`]). A new physical effect is one
+//! how they are checked and build the module (`ModuleParams`). A new physical effect is one
 //! such file (its parameters, its state, `impl ModuleParams` and `impl StandModule`), its table
 //! as a field of [`crate::Scenario`], and one line in `Scenario::module_params`, which both the
 //! scenario's check and [`modules`] iterate; plus its diagnosis file in

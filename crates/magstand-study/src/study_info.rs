@@ -16,9 +16,9 @@ pub const VERSION: u32 = 1;
 /// What was run.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct StudyInfo {
-    /// Always [`FORMAT`].
+    /// Always the study file's format name, `magstand-montecarlo`.
     pub format: String,
-    /// Always [`VERSION`] when written by this version.
+    /// The study file's format version: the current one when written by this version.
     pub version: u32,
     /// magstand version that ran it.
     pub magstand_version: String,

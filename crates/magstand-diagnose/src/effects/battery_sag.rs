@@ -10,8 +10,8 @@ use crate::optimize::{Search, minimize};
 ///
 /// The catalog's form replays the nominal motor on a LiPo pack. Where no voltage is logged,
 /// richer forms ([`Effect::richer`]) also free the discharge's shape and the current's
-/// sensitivity to the voltage ([`discharge_columns`]), to first and then to second order in
-/// the voltage's change, or drop the pack's constants altogether ([`drawn_charge_columns`]);
+/// sensitivity to the voltage (`discharge_columns`), to first and then to second order in
+/// the voltage's change, or drop the pack's constants altogether (`drawn_charge_columns`);
 /// each is kept only where it lowers the held-out error significantly beyond the catalog's.
 /// A free form whose resistance runs to the lower end of its range stands for the same form
 /// without a sag under load ([`Effect::edge_limit`]).
