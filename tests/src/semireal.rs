@@ -144,16 +144,18 @@ impl Injection {
     pub fn apply(&self, rec: &Recording) -> Recording {
         let mut out = rec.clone();
         let t = &rec.t_s;
+        // Where each row's time less `delay_s` falls among the rows (held at the ends).
+        let earlier = |delay_s: f64| locate_increasing(t, t.iter().map(|&x| x - delay_s));
         let added: Vec<Vec3> = match *self {
             Injection::MagLate { delay_s } => {
-                out.mag_ut = t
-                    .iter()
-                    .map(|&x| interpolate_at(t, &rec.mag_ut, x - delay_s))
+                out.mag_ut = earlier(delay_s)
+                    .into_iter()
+                    .map(|p| interpolate(&rec.mag_ut, p))
                     .collect();
                 vec![Vec3::zeros(); t.len()]
             }
             Injection::CommandsLate { delay_s } => {
-                let places = locate_increasing(t, t.iter().map(|&x| x - delay_s));
+                let places = earlier(delay_s);
                 for column in out.thr.iter_mut() {
                     *column = places.iter().map(|&p| interpolate(column, p)).collect();
                 }
@@ -255,18 +257,6 @@ fn quantize(v: f64, step: f64) -> f64 {
         (v / step).round() * step
     } else {
         v
-    }
-}
-
-/// `y` sampled at `t`, linearly interpolated at `x` (held at the ends).
-fn interpolate_at(t: &[f64], y: &[Vec3], x: f64) -> Vec3 {
-    match t.partition_point(|&v| v <= x) {
-        0 => y[0],
-        k if k >= t.len() => y[t.len() - 1],
-        k => {
-            let f = (x - t[k - 1]) / (t[k] - t[k - 1]);
-            y[k - 1] + (y[k] - y[k - 1]) * f
-        }
     }
 }
 

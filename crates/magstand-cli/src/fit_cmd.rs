@@ -176,6 +176,19 @@ fn take_out_earth_field(
     };
     let p = prepare_flight(rec, &cfg, origin)?;
     let e = p.earth_ned_ut;
+    let input = match cfg.input {
+        FlightInput::Current => "current",
+        FlightInput::Throttle => "commands",
+    };
+    // A negative delay: the input is logged after it acted.
+    let input_delay = if p.delay_s < 0.0 {
+        format!(
+            "{:.3} s ahead of the {input} (the {input} logged late)",
+            -p.delay_s
+        )
+    } else {
+        format!("{:.3} s behind the {input}", p.delay_s)
+    };
     let summary = format!(
         "Earth field ({}): N {:.2} E {:.2} D {:.2} uT (|e| {:.2} uT, inclination {:.1} deg); magnetometer samples {:.3} s behind the attitude and {}; stacked-fit residual {:.2} uT RMS; attitude: tilt up to {:.0} deg, {:.0} deg of heading covered",
         model_name,
@@ -185,21 +198,7 @@ fn take_out_earth_field(
         e.norm(),
         e.z.atan2(e.xy().norm()).to_degrees(),
         p.attitude_delay_s,
-        {
-            let input = match cfg.input {
-                FlightInput::Current => "current",
-                FlightInput::Throttle => "commands",
-            };
-            // A negative delay: the input is logged after it acted.
-            if p.delay_s < 0.0 {
-                format!(
-                    "{:.3} s ahead of the {input} (the {input} logged late)",
-                    -p.delay_s
-                )
-            } else {
-                format!("{:.3} s behind the {input}", p.delay_s)
-            }
-        },
+        input_delay,
         p.residual_rms_ut,
         p.attitude_span_deg.0,
         p.attitude_span_deg.1
