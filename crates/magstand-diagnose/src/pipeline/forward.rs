@@ -892,6 +892,39 @@ fn restate_gains(
     }
 }
 
+/// Restores the search to the round of a deferred calibration, its candidates' fits kept for
+/// the round run again ([`Deferred`]).
+#[allow(clippy::type_complexity)]
+fn undo_deferral<'e>(
+    d: Deferred<'e>,
+    ctx: &mut Context,
+    (terms, reports, stages): (
+        &mut Vec<Term<'e>>,
+        &mut Vec<EffectReport>,
+        &mut Vec<(String, Vec<Vec3>)>,
+    ),
+    (withdrawn, indeterminate, limits): (
+        &mut Vec<String>,
+        &mut Vec<(&'static str, Option<&'static str>)>,
+        &mut Vec<&'static dyn Effect>,
+    ),
+    (rounds, latest, richer_fits, unchanged): (
+        &mut Vec<Round>,
+        &mut Option<ModelFit>,
+        &mut RicherFits,
+        &mut Vec<Candidate>,
+    ),
+) {
+    let s = d.before;
+    (*terms, *reports, *stages) = (s.terms, s.reports, s.stages);
+    withdrawn.truncate(s.withdrawn);
+    indeterminate.truncate(s.indeterminate);
+    (ctx.command_lead, ctx.motor_current_law) = (s.command_lead, s.motor_current_law);
+    rounds.truncate(d.rounds);
+    limits.truncate(d.limits);
+    (*latest, *richer_fits, *unchanged) = (d.latest, d.richer_fits, d.tried);
+}
+
 /// What [`forward_search`] restores where a finding's acceptance is undone.
 struct Snapshot<'e> {
     terms: Vec<Term<'e>>,
@@ -903,7 +936,70 @@ struct Snapshot<'e> {
     motor_current_law: Option<crate::augmented_model::MotorCurrentLaw>,
 }
 
+/// Whether a calibration's refinement may be deferred, and whether the round after a deferral
+/// is taken as accepting nothing: the tests' handles on both paths.
+#[cfg(test)]
+mod deferral_switch {
+    use std::cell::Cell;
+
+    thread_local! {
+        /// (deferral allowed, the round after one taken as accepting nothing)
+        pub(super) static MODE: Cell<(bool, bool)> = const { Cell::new((true, false)) };
+        /// (deferrals taken, deferrals undone) since the last reset.
+        pub(super) static COUNTS: Cell<(usize, usize)> = const { Cell::new((0, 0)) };
+    }
+
+    pub(super) fn allowed() -> bool {
+        MODE.with(|m| m.get().0)
+    }
+
+    pub(super) fn forced_back() -> bool {
+        MODE.with(|m| m.get().1)
+    }
+
+    pub(super) fn count(taken: usize, undone: usize) {
+        COUNTS.with(|c| {
+            let (t, u) = c.get();
+            c.set((t + taken, u + undone));
+        });
+    }
+}
+
+#[cfg(not(test))]
+mod deferral_switch {
+    pub(super) fn allowed() -> bool {
+        true
+    }
+
+    pub(super) fn forced_back() -> bool {
+        false
+    }
+
+    pub(super) fn count(_taken: usize, _undone: usize) {}
+}
+
+/// A calibration accepted without its refinement, while another stand constant the same round
+/// found significant waits for the next ([`forward_search`]): what is restored, and the round
+/// run again with its candidates' fits, where that next round does not accept a term.
+struct Deferred<'e> {
+    before: Snapshot<'e>,
+    rounds: usize,
+    limits: usize,
+    latest: Option<ModelFit>,
+    richer_fits: RicherFits,
+    tried: Vec<Candidate>,
+}
+
 /// Runs the forward search over `effects` from the baseline `base`.
+///
+/// Unstated stand constants that one calibration round finds significant together (a spin-up
+/// and a dead zone, on most unstated stands) are calibrated in consecutive rounds, the first
+/// accepted without the joint refinement that follows every acceptance: the second's
+/// acceptance refines both with everything else, which the first's refinement would only
+/// have anticipated (a refinement is a replay per point of every search: a third of an
+/// unstated diagnosis's time went on the two). Where the next round accepts no term, the
+/// search returns to the round of the first calibration and takes it with its refinement, as
+/// it always did.
 pub(crate) fn forward_search<'e>(
     ctx: &mut Context,
     effects: &'e [Box<dyn Effect>],
@@ -932,6 +1028,27 @@ pub(crate) fn forward_search<'e>(
     // ([`Effect::edge_limit`]), tried beside their catalog's form from then on.
     let mut limits: Vec<&'static dyn Effect> = Vec::new();
     let mut withdrawn: Vec<String> = Vec::new();
+    // A calibration accepted without its refinement, and the round that may not defer one
+    // (the round run again after a deferral did not hold).
+    let mut deferred: Option<Deferred> = None;
+    let mut refine_at_once_in: Option<usize> = None;
+    // Undoes the deferral `d` and runs its round again, its calibration refined at once.
+    macro_rules! go_back {
+        ($d:expr) => {{
+            let d: Deferred = $d;
+            refine_at_once_in = Some(d.rounds);
+            deferral_switch::count(0, 1);
+            undo_deferral(
+                d,
+                ctx,
+                (&mut terms, &mut reports, &mut stages),
+                (&mut withdrawn, &mut indeterminate, &mut limits),
+                (&mut rounds, &mut latest, &mut richer_fits, &mut unchanged),
+            );
+            calibrating = true;
+            continue;
+        }};
+    }
     while terms.len() < cfg.max_terms {
         let model = latest.as_ref().unwrap_or(&base.model);
         let (cur_fit, w) = (&model.fitted, &model.weights);
@@ -1096,6 +1213,11 @@ pub(crate) fn forward_search<'e>(
             accepted: best.as_ref().map(|(i, _)| open[*i].name().to_string()),
             whiteness_p: Some(white),
         };
+        if (best.is_none() || deferral_switch::forced_back())
+            && let Some(d) = deferred.take()
+        {
+            go_back!(d);
+        }
         let Some((i, located)) = best else {
             rounds.push(round);
             if calibration_round {
@@ -1143,8 +1265,26 @@ pub(crate) fn forward_search<'e>(
             theta_sd,
         });
         // The new term was fitted with the others' parameters held; they and the moment of
-        // the interval at which commands act are refitted with it.
-        refine(ctx, &mut terms, w, refused_at_edge);
+        // the interval at which commands act are refitted with it, unless another stand
+        // constant found significant beside it is calibrated next (its acceptance refines
+        // both).
+        let defer = deferral_switch::allowed()
+            && deferred.is_none()
+            && refine_at_once_in != Some(rounds.len())
+            && calibration_round
+            && terms.len() < cfg.max_terms
+            && calibrates(open[i], ctx, &terms[terms.len() - 1].theta)
+            && tried.iter().enumerate().any(|(j, c)| {
+                j != i
+                    && open[j].name() != open[i].name()
+                    && is_unstated_constant(open[j], ctx)
+                    && self::significant(&c.result, threshold)
+            });
+        if defer {
+            deferral_switch::count(1, 0);
+        } else {
+            refine(ctx, &mut terms, w, refused_at_edge);
+        }
         // The bound rule holds for refined parameters too, after every refinement: an older
         // finding the new term leaves at the edge of its range is withdrawn (the new term
         // explains what it took) and the rest refined again without it; where the new term
@@ -1180,6 +1320,11 @@ pub(crate) fn forward_search<'e>(
             indeterminate.push((gone.effect.name(), gone.effect.variant()));
             refine(ctx, &mut terms, w, refused_at_edge);
         }
+        if refused.is_some()
+            && let Some(d) = deferred.take()
+        {
+            go_back!(d);
+        }
         if let Some(why) = refused {
             let s = before_acceptance;
             (terms, reports, stages) = (s.terms, s.reports, s.stages);
@@ -1204,10 +1349,26 @@ pub(crate) fn forward_search<'e>(
             restate_gains(ctx, &terms, w, &mut reports, &mut stages[1..], restate_from);
         }
         let fitted = fit_model(ctx, &terms, Some(w))?;
-        latest = Some(refitted_under_own_weights(ctx, &mut terms, fitted)?);
-        richer_fits = RicherFits::default();
+        if defer {
+            let rounds_before = rounds.len();
+            deferred = Some(Deferred {
+                before: before_acceptance,
+                rounds: rounds_before,
+                limits: limits.len(),
+                latest: latest.replace(fitted),
+                richer_fits: std::mem::take(&mut richer_fits),
+                tried,
+            });
+        } else {
+            deferred = None;
+            latest = Some(refitted_under_own_weights(ctx, &mut terms, fitted)?);
+            richer_fits = RicherFits::default();
+        }
         rounds.push(round);
     }
+    // A deferral leaves room for the round after it, which takes the deferral's refinement
+    // with its own acceptance or undoes it.
+    debug_assert!(deferred.is_none(), "a deferred refinement was never taken");
     Ok(SearchOutcome {
         terms,
         rounds,
@@ -1223,6 +1384,82 @@ mod tests {
     use super::*;
     use crate::effects::TestStand;
     use crate::locate::Location;
+
+    /// A calibration accepted without its refinement while the other unstated constant
+    /// waits for the next round names what the refinement at once names, with the constants
+    /// within their uncertainty; where the round after it accepts nothing, the search goes
+    /// back to the first calibration's round and its diagnosis is the one without a
+    /// deferral, bit for bit.
+    #[test]
+    fn a_deferred_calibration_refinement_names_the_same_and_goes_back_exactly() {
+        use magstand_sim::{Scenario, simulate};
+        let stand = r#"
+            name = "steps"
+            [motors]
+            dead_zone = 0.15
+            spinup_tau_s = 0.03
+            [program]
+            kind = "random_steps"
+            off_s = 2.0
+            count = 60
+            dwell_min_s = 1.0
+            dwell_max_s = 2.0
+            [supply]
+            kind = "bench"
+            voltage_v = 12.0
+            [magnetometer]
+            odr_hz = 50.0
+        "#;
+        let real = Scenario::from_toml_str(stand, "real")
+            .and_then(|s| s.check("real", None))
+            .expect("a valid stand");
+        let rec = simulate(&real, 3);
+        let nominal = crate::unstated_nominal().expect("the default stand");
+        let config = crate::DiagnoseConfig::default().check().expect("defaults");
+        // Each run with its switches, and the (deferrals taken, undone) it counted.
+        let run = |mode: (bool, bool)| {
+            deferral_switch::MODE.with(|m| m.set(mode));
+            deferral_switch::COUNTS.with(|c| c.set((0, 0)));
+            let d = crate::diagnose(&rec, "steps.csv", &nominal, &config).expect("a diagnosis");
+            deferral_switch::MODE.with(|m| m.set((true, false)));
+            (d, deferral_switch::COUNTS.with(|c| c.get()))
+        };
+        let (at_once, counted_at_once) = run((false, false));
+        let (deferred, counted_deferred) = run((true, false));
+        let (gone_back, counted_gone_back) = run((true, true));
+        assert_eq!(counted_at_once, (0, 0));
+        assert!(
+            counted_deferred.0 >= 1 && counted_deferred.1 == 0,
+            "deferrals taken and undone: {counted_deferred:?}"
+        );
+        assert!(counted_gone_back.1 >= 1, "{counted_gone_back:?}");
+        let calibrated = |d: &crate::Diagnosis, key: &str| {
+            d.baseline
+                .calibration
+                .iter()
+                .find(|c| c.name == key)
+                .map(|c| (c.value, c.sd))
+                .unwrap_or_else(|| panic!("{key} not calibrated in {:?}", d.verdict))
+        };
+        assert_eq!(deferred.verdict, at_once.verdict);
+        for key in ["motors.dead_zone", "motors.spinup_tau_s"] {
+            let ((a, sd_a), (b, sd_b)) = (calibrated(&at_once, key), calibrated(&deferred, key));
+            let sd = sd_a.unwrap_or(0.0).max(sd_b.unwrap_or(0.0));
+            assert!(
+                (a - b).abs() <= 2.0 * sd + 1e-9,
+                "{key}: {a} ± {sd_a:?} at once, {b} ± {sd_b:?} deferred"
+            );
+        }
+        let json = |d: &crate::Diagnosis| serde_json::to_string(d).expect("serializable");
+        let (back, once) = (json(&gone_back), json(&at_once));
+        let first_difference = back.bytes().zip(once.bytes()).position(|(a, b)| a != b);
+        assert!(
+            back == once,
+            "gone back: {} bytes, at once: {} bytes, first difference at byte {first_difference:?}",
+            back.len(),
+            once.len()
+        );
+    }
 
     /// A round refused after its refinement leaves the model as it was, and the round tried
     /// again takes each richer form fitted from the same start from the store instead of
