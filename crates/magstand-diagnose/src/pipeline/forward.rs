@@ -982,11 +982,17 @@ mod deferral_switch {
 /// found significant waits for the next ([`forward_search`]): what is restored, and the round
 /// run again with its candidates' fits, where that next round does not accept a term.
 struct Deferred<'e> {
+    /// The search as it was before the calibration's acceptance.
     before: Snapshot<'e>,
+    /// The rounds before the calibration's own, which is run again.
     rounds: usize,
+    /// The limits of edges found before it.
     limits: usize,
+    /// The model before it.
     latest: Option<ModelFit>,
+    /// The richer forms kept before it.
     richer_fits: RicherFits,
+    /// The round's candidates as fitted, for the round run again.
     tried: Vec<Candidate>,
 }
 
