@@ -915,11 +915,8 @@ fn undo_deferral<'e>(
         &mut Vec<Candidate>,
     ),
 ) {
-    let s = d.before;
-    (*terms, *reports, *stages) = (s.terms, s.reports, s.stages);
-    withdrawn.truncate(s.withdrawn);
-    indeterminate.truncate(s.indeterminate);
-    (ctx.command_lead, ctx.motor_current_law) = (s.command_lead, s.motor_current_law);
+    d.before
+        .restore(ctx, (terms, reports, stages), (withdrawn, indeterminate));
     rounds.truncate(d.rounds);
     limits.truncate(d.limits);
     (*latest, *richer_fits, *unchanged) = (d.latest, d.richer_fits, d.tried);
@@ -934,6 +931,29 @@ struct Snapshot<'e> {
     indeterminate: usize,
     command_lead: f64,
     motor_current_law: Option<crate::augmented_model::MotorCurrentLaw>,
+}
+
+impl<'e> Snapshot<'e> {
+    /// Puts the search back as it was when the snapshot was taken.
+    #[allow(clippy::type_complexity)]
+    fn restore(
+        self,
+        ctx: &mut Context,
+        (terms, reports, stages): (
+            &mut Vec<Term<'e>>,
+            &mut Vec<EffectReport>,
+            &mut Vec<(String, Vec<Vec3>)>,
+        ),
+        (withdrawn, indeterminate): (
+            &mut Vec<String>,
+            &mut Vec<(&'static str, Option<&'static str>)>,
+        ),
+    ) {
+        (*terms, *reports, *stages) = (self.terms, self.reports, self.stages);
+        withdrawn.truncate(self.withdrawn);
+        indeterminate.truncate(self.indeterminate);
+        (ctx.command_lead, ctx.motor_current_law) = (self.command_lead, self.motor_current_law);
+    }
 }
 
 /// Whether a calibration's refinement may be deferred, and whether the round after a deferral
@@ -1332,11 +1352,11 @@ pub(crate) fn forward_search<'e>(
             go_back!(d);
         }
         if let Some(why) = refused {
-            let s = before_acceptance;
-            (terms, reports, stages) = (s.terms, s.reports, s.stages);
-            withdrawn.truncate(s.withdrawn);
-            indeterminate.truncate(s.indeterminate);
-            (ctx.command_lead, ctx.motor_current_law) = (s.command_lead, s.motor_current_law);
+            before_acceptance.restore(
+                ctx,
+                (&mut terms, &mut reports, &mut stages),
+                (&mut withdrawn, &mut indeterminate),
+            );
             let mut round = round;
             round.accepted = None;
             round.candidates[i].note = Some(format!("refused: {why}"));
