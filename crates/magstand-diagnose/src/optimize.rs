@@ -569,16 +569,110 @@ pub(crate) fn minimize_near_by_parabolas(
     let eval = in_search_coordinates(searches, &f);
     let at = |u: f64| eval(&[u]);
     let (ulo, uhi) = s.u_range();
-    let h = s.step();
     let start = s.unit_of(*from).clamp(ulo, uhi);
+    let Some(steps) = parabola_steps(s, start, at(start), &at) else {
+        return fallback(&f);
+    };
+    steps.value.is_finite().then(|| Optimum {
+        theta: vec![s.value_at(steps.u)],
+        value: steps.value,
+        sd: vec![None],
+    })
+}
+
+/// [`minimize_near`] from `from` by Newton's steps on parabolas, as
+/// [`minimize_near_by_parabolas`] takes them, one parameter after another (each from where the
+/// steps before left the others), with each parameter's uncertainty from the curvature of its
+/// last parabola (as [`Precision::Fine`]). Where a parameter's parabolas open downward, cannot
+/// be evaluated or do not close on a vertex between their probes within
+/// [`PARABOLA_ITERATIONS`], [`minimize_near`] does the search.
+///
+/// For a refinement's searches near an optimum the model before moved a little (another term
+/// refitted, the weights estimated again): the chi-square is smooth there, and three to seven
+/// evaluations per parameter reach the optimum about as closely as Brent's method's dozen
+/// and its curvature's two.
+pub(crate) fn minimize_near_fine_by_parabolas(
+    searches: &[Search],
+    from: &[f64],
+    f: impl Fn(&[f64]) -> Option<f64> + Sync,
+) -> Option<Optimum> {
+    let fallback = |f| minimize_near(searches, Some(from), f);
+    if searches.is_empty() || from.len() != searches.len() {
+        return fallback(&f);
+    }
+    let eval = in_search_coordinates(searches, &f);
+    let mut u: Vec<f64> = searches
+        .iter()
+        .zip(from)
+        .map(|(s, &v)| {
+            let (lo, hi) = s.u_range();
+            s.unit_of(v).clamp(lo, hi)
+        })
+        .collect();
+    let mut value = eval(&u);
+    if !value.is_finite() {
+        return fallback(&f);
+    }
+    let mut sd = Vec::with_capacity(searches.len());
+    for (k, s) in searches.iter().enumerate() {
+        let base = u.clone();
+        let at = |x: f64| {
+            let mut v = base.clone();
+            v[k] = x;
+            eval(&v)
+        };
+        let Some(steps) = parabola_steps(s, u[k], value, &at).filter(|p| p.closed) else {
+            return fallback(&f);
+        };
+        (u[k], value) = (steps.u, steps.value);
+        let dtheta_du = if s.log { s.value_at(steps.u) } else { 1.0 };
+        sd.push(Some((2.0 / steps.curvature).sqrt() * dtheta_du));
+    }
+    Some(Optimum {
+        theta: searches
+            .iter()
+            .zip(&u)
+            .map(|(s, &u)| s.value_at(u))
+            .collect(),
+        value,
+        sd,
+    })
+}
+
+/// Where [`parabola_steps`] ended.
+struct ParabolaSteps {
+    /// The best point evaluated, in search coordinates.
+    u: f64,
+    /// The objective there.
+    value: f64,
+    /// The last parabola's curvature, in search coordinates (positive).
+    curvature: f64,
+    /// Whether the last vertex lay between its probes.
+    closed: bool,
+}
+
+/// Newton's steps on parabolas for one parameter of search `s` from `start` (where the
+/// objective `at` is `at_start`), within a grid step of it: parabolas through three points
+/// [`PARABOLA_PROBE_STEPS`] of a grid step apart, the vertex evaluated each time, until a
+/// vertex lies between its probes or [`PARABOLA_ITERATIONS`] were fitted. None where the
+/// bracket is too narrow to probe or a parabola does not open upward.
+fn parabola_steps(
+    s: &Search,
+    start: f64,
+    at_start: f64,
+    at: &(impl Fn(f64) -> f64 + Sync),
+) -> Option<ParabolaSteps> {
+    let (ulo, uhi) = s.u_range();
+    let h = s.step();
     // The bracket of `minimize_near_to`'s refinement: a grid step either way.
     let (a, b) = ((start - h).max(ulo), (start + h).min(uhi));
     let d = PARABOLA_PROBE_STEPS * h;
     if b - a < 2.0 * d {
-        return fallback(&f);
+        return None;
     }
-    let (mut u, mut fu) = (start, at(start));
+    let (mut u, mut fu) = (start, at_start);
     let mut best = (u, fu);
+    let mut last_curvature = f64::NAN;
     for _ in 0..PARABOLA_ITERATIONS {
         // The probes within the bracket.
         let c = u.clamp(a + d, b - d);
@@ -591,21 +685,28 @@ pub(crate) fn minimize_near_by_parabolas(
         }
         let curvature = (up - 2.0 * fc + down) / (d * d);
         if !(curvature.is_finite() && curvature > 0.0) {
-            return fallback(&f);
+            return None;
         }
+        last_curvature = curvature;
         let vertex = (c - (up - down) / (2.0 * d) / curvature).clamp(a, b);
         (u, fu) = (vertex, at(vertex));
         if fu < best.1 {
             best = (u, fu);
         }
         if (vertex - c).abs() <= d {
-            break;
+            return Some(ParabolaSteps {
+                u: best.0,
+                value: best.1,
+                curvature,
+                closed: true,
+            });
         }
     }
-    best.1.is_finite().then(|| Optimum {
-        theta: vec![s.value_at(best.0)],
+    Some(ParabolaSteps {
+        u: best.0,
         value: best.1,
-        sd: vec![None],
+        curvature: last_curvature,
+        closed: false,
     })
 }
 
@@ -893,6 +994,71 @@ mod tests {
         assert_eq!(
             minimize_near_by_parabolas(&s, &[0.55], hill),
             minimize_near_to(&s, Some(&[0.55]), Precision::Value, hill)
+        );
+    }
+
+    /// A refinement's search near an optimum by parabolas: two parameters (one on a log
+    /// grid, each chi-square with a cubic part, so that a parabola is not exact) reach the
+    /// optimum and its curvature's sd as Brent's refinement does, in fewer evaluations; a
+    /// minimum beyond the bracket ends at its end, where Brent's search is asked; where a
+    /// parabola opens downward, Brent's refinement decides.
+    #[test]
+    fn fine_parabolas_reach_brents_optimum_and_sd_in_fewer_evaluations() {
+        use std::sync::atomic::{AtomicUsize, Ordering};
+        let s = [
+            Search {
+                points: 15,
+                ..search("tau", 0.001, 3.0, true)
+            },
+            search("x", 0.0, 1.0, false),
+        ];
+        let calls = AtomicUsize::new(0);
+        // Optimum at tau 0.5 (sd 0.2 % of it) and x 0.37 (sd 0.02).
+        let f = |t: &[f64]| {
+            calls.fetch_add(1, Ordering::Relaxed);
+            let a = (t[0] / 0.5).ln() / 0.002;
+            let b = (t[1] - 0.37) / 0.02;
+            Some(a * a + 0.002 * a * a * a + b * b + 0.01 * b * b * b)
+        };
+        for start in [[0.5, 0.37], [0.52, 0.40], [0.47, 0.33]] {
+            calls.store(0, Ordering::Relaxed);
+            let o = minimize_near_fine_by_parabolas(&s, &start, f).expect("an optimum");
+            let n = calls.load(Ordering::Relaxed);
+            calls.store(0, Ordering::Relaxed);
+            let brent = minimize_near(&s, Some(&start), f).expect("Brent's optimum");
+            let by_brent = calls.load(Ordering::Relaxed);
+            assert!(
+                (o.theta[0] / 0.5 - 1.0).abs() < 1e-3 && (o.theta[1] - 0.37).abs() < 0.01,
+                "from {start:?}: {o:?}"
+            );
+            assert!(o.value < 0.1, "from {start:?}: {o:?}");
+            for (k, (got, want)) in o.sd.iter().zip(&brent.sd).enumerate() {
+                let (got, want) = (got.expect("an sd"), want.expect("Brent's sd"));
+                assert!(
+                    (got / want - 1.0).abs() < 0.05,
+                    "from {start:?}: parameter {k}'s sd {got}, Brent's {want}"
+                );
+            }
+            assert!(
+                n < by_brent,
+                "{o:?} in {n} evaluations against Brent's {brent:?} in {by_brent}"
+            );
+        }
+        // An optimum beyond the bracket (a grid step, 0.125, from the start): both end at
+        // its end.
+        let far = |t: &[f64]| Some(((t[0] - 0.9) / 0.02).powi(2));
+        let one = [search("x", 0.0, 1.0, false)];
+        for o in [
+            minimize_near_fine_by_parabolas(&one, &[0.3], far),
+            minimize_near(&one, Some(&[0.3]), far),
+        ] {
+            let x = o.expect("an optimum").theta[0];
+            assert!((x - 0.425).abs() < 1e-3, "ended at {x}");
+        }
+        let hill = |t: &[f64]| Some(-((t[0] - 0.5) / 0.1).powi(2));
+        assert_eq!(
+            minimize_near_fine_by_parabolas(&one, &[0.55], hill),
+            minimize_near(&one, Some(&[0.55]), hill)
         );
     }
 
