@@ -1000,7 +1000,7 @@ mod tests {
     /// A refinement's search near an optimum by parabolas: two parameters (one on a log
     /// grid, each chi-square with a cubic part, so that a parabola is not exact) reach the
     /// optimum and its curvature's sd as Brent's refinement does, in fewer evaluations; a
-    /// minimum beyond the bracket ends at its end, where Brent's search is asked; where a
+    /// minimum beyond the bracket ends at its end, as Brent's refinement does; where a
     /// parabola opens downward, Brent's refinement decides.
     #[test]
     fn fine_parabolas_reach_brents_optimum_and_sd_in_fewer_evaluations() {
