@@ -81,10 +81,9 @@ pub(crate) fn refine(
                 minimize_to(&searches, Precision::Coarse, chi2)
             } else if pass == 1 && one_basin {
                 minimize_near_or_beyond(&searches, &terms[k].theta, chi2)
-            } else if pass > 0 {
-                minimize_near(&searches, Some(&terms[k].theta), chi2)
             } else {
-                minimize(&searches, chi2)
+                let from = (pass > 0).then_some(terms[k].theta.as_slice());
+                minimize_near(&searches, from, chi2)
             };
             if let Some(opt) = found {
                 terms[k].theta = opt.theta;
@@ -510,7 +509,8 @@ pub(crate) fn calibrate_timing(ctx: &Context, terms: &[Term], weights: &Weights)
 }
 
 /// [`calibrate_timing`], searched near `from` (a lead found for a nearby model) when given, by
-/// parabolas as the refinement's later passes search.
+/// parabolas ([`minimize_near_fine_by_parabolas`]: the lead's chi-square is smooth near its
+/// optimum).
 fn calibrate_timing_from(
     ctx: &Context,
     terms: &[Term],
