@@ -126,6 +126,18 @@ fn units_of(searches: &[Search], theta: &[f64]) -> Vec<f64> {
         .collect()
 }
 
+/// Each parameter of `theta` in its search's coordinates, kept within its range.
+fn units_in_range(searches: &[Search], theta: &[f64]) -> Vec<f64> {
+    searches
+        .iter()
+        .zip(theta)
+        .map(|(s, &v)| {
+            let (lo, hi) = s.u_range();
+            s.unit_of(v).clamp(lo, hi)
+        })
+        .collect()
+}
+
 /// [`minimize`] over the whole range, or, `from` the optimum of an objective close to this
 /// one (the same search after another term's parameters moved a little), Brent's refinement
 /// within a grid step of each parameter without the grid. The whole range is searched where
@@ -173,14 +185,7 @@ fn minimize_near_or_whole(
         return minimize_to(searches, precision, f);
     };
     let eval = in_search_coordinates(searches, &f);
-    let start: Vec<f64> = searches
-        .iter()
-        .zip(theta)
-        .map(|(s, &v)| {
-            let (lo, hi) = s.u_range();
-            s.unit_of(v).clamp(lo, hi)
-        })
-        .collect();
+    let start = units_in_range(searches, theta);
     let value = eval(&start);
     if !value.is_finite() {
         return minimize_to(searches, precision, &f);
@@ -601,14 +606,7 @@ pub(crate) fn minimize_near_fine_by_parabolas(
         return fallback(&f);
     }
     let eval = in_search_coordinates(searches, &f);
-    let mut u: Vec<f64> = searches
-        .iter()
-        .zip(from)
-        .map(|(s, &v)| {
-            let (lo, hi) = s.u_range();
-            s.unit_of(v).clamp(lo, hi)
-        })
-        .collect();
+    let mut u = units_in_range(searches, from);
     let mut value = eval(&u);
     if !value.is_finite() {
         return fallback(&f);
