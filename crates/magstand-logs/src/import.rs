@@ -161,15 +161,21 @@ impl ImportReport {
         if let Some(p) = &self.position {
             let _ = writeln!(
                 s,
-                "position: {:.5} N {:.5} E, {:.0} m{}",
-                p.lat_deg,
-                p.lon_deg,
+                "position: {} {}, {:.0} m{}",
+                hemisphere_deg(p.lat_deg, 'N', 'S'),
+                hemisphere_deg(p.lon_deg, 'E', 'W'),
                 p.alt_m,
                 p.year.map_or(String::new(), |y| format!(", {y:.2}"))
             );
         }
         s
     }
+}
+
+/// A latitude or longitude as its size and hemisphere (`87.70563 W`, not `-87.70563 E`).
+fn hemisphere_deg(deg: f64, positive: char, negative: char) -> String {
+    let letter = if deg < 0.0 { negative } else { positive };
+    format!("{:.5} {letter}", deg.abs())
 }
 
 /// Reads a log file of either format (by its first bytes) and imports it.
