@@ -22,7 +22,7 @@ use magstand_core::{Recording, recording_csv};
 use magstand_diagnose::{DiagnoseConfig, Diagnosis, UNEXPLAINED, diagnose, unstated_nominal};
 use magstand_ident::{Dataset, Fit, FitConfig, InputKind};
 use magstand_sim::{Scenario, ValidScenario};
-use magstand_standgen::{Case as GenCase, Effect, Stand, Supply, generate};
+use magstand_standgen::{Case as GenCase, Commanded, Effect, Stand, Supply, generate};
 
 /// How the stand is given to the diagnosis.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -194,7 +194,9 @@ pub fn cases() -> Vec<Case> {
 /// never looked at while the diagnosis was developed), with `STAND=octocopter`
 /// [`Stand::octocopter`] (a third stand, added after the other two had been looked at);
 /// `RATE_HZ` in the environment samples
-/// either at another rate (the recordings keep their number of rows).
+/// either at another rate (the recordings keep their number of rows), and `PROGRAM=stair`
+/// (or `stair,STEPS,DWELL_S,OFF_S`; 8 levels of 6 s after 8 s off unless given) drives it
+/// by the paper's up-and-down stairs instead of random steps.
 pub fn suite_stand() -> Stand {
     let mut stand = match std::env::var("STAND").as_deref() {
         Ok("held-out") => Stand::held_out(),
@@ -208,7 +210,34 @@ pub fn suite_stand() -> Stand {
     {
         stand.rate_hz = rate_hz;
     }
+    if let Ok(program) = std::env::var("PROGRAM") {
+        stand.program = stair_program(&program).unwrap_or_else(|| {
+            panic!("PROGRAM={program:?}: expected `stair` or `stair,STEPS,DWELL_S,OFF_S`")
+        });
+    }
     stand
+}
+
+/// The stair program `PROGRAM` names ([`suite_stand`]).
+fn stair_program(text: &str) -> Option<Commanded> {
+    let mut parts = text.split(',');
+    if parts.next()? != "stair" {
+        return None;
+    }
+    let rest: Vec<f64> = parts
+        .map(|p| p.trim().parse().ok())
+        .collect::<Option<_>>()?;
+    let (steps, dwell_s, off_s) = match rest.as_slice() {
+        [] => (8.0, 6.0, 8.0),
+        &[n, d, o] => (n, d, o),
+        _ => return None,
+    };
+    let valid = steps >= 1.0 && steps.fract() == 0.0 && dwell_s > 0.0 && off_s >= 0.0;
+    valid.then_some(Commanded::Stair {
+        steps: steps as usize,
+        dwell_s,
+        off_s,
+    })
 }
 
 /// Variants of the generator's two stands with other packs, current laws and motor counts,

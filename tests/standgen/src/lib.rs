@@ -58,6 +58,25 @@ pub struct Stand {
     pub differential: f64,
     /// The battery that replaces the supply under [`Effect::BatterySag`].
     pub battery: Supply,
+    /// The overall command's program.
+    pub program: Commanded,
+}
+
+/// How the overall command moves over a recording.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Commanded {
+    /// Random levels held 1.2 to 4.5 s each, one step in six motors-off.
+    RandomSteps,
+    /// The paper's protocol made periodic: `steps` even levels up to full command and back
+    /// down, each held `dwell_s`, then the motors off for `off_s`, over and over.
+    Stair {
+        /// Levels on the way up (the top one is full command).
+        steps: usize,
+        /// How long each level is held, s.
+        dwell_s: f64,
+        /// The motors-off stretch before each cycle, s.
+        off_s: f64,
+    },
 }
 
 /// What feeds the motors.
@@ -127,6 +146,7 @@ impl Default for Stand {
                 capacity_ah: 1.3,
                 resistance_ohm: 0.045,
             },
+            program: Commanded::RandomSteps,
         }
     }
 }
@@ -155,6 +175,7 @@ impl Stand {
                 capacity_ah: 4.0,
                 resistance_ohm: 0.03,
             },
+            program: Commanded::RandomSteps,
         }
     }
 
@@ -181,6 +202,7 @@ impl Stand {
                 capacity_ah: 3.0,
                 resistance_ohm: 0.05,
             },
+            program: Commanded::RandomSteps,
         }
     }
 }
@@ -340,7 +362,54 @@ struct Program {
 }
 
 impl Program {
-    fn new(duration_s: f64, differential: f64, rng: &mut Random) -> Self {
+    fn new(kind: Commanded, duration_s: f64, differential: f64, rng: &mut Random) -> Self {
+        let steps = match kind {
+            Commanded::RandomSteps => Self::random_steps(duration_s, rng),
+            Commanded::Stair {
+                steps,
+                dwell_s,
+                off_s,
+            } => Self::stair(duration_s, steps.max(1), dwell_s, off_s),
+        };
+        let mut patterns = Vec::new();
+        let mut t = 0.0;
+        while t < duration_s {
+            patterns.push((t, (rng.next() % 4) as usize));
+            t += 2.0 + 4.0 * rng.uniform();
+        }
+        Program {
+            steps,
+            patterns,
+            differential,
+        }
+    }
+
+    /// Up-and-down stairs of `n` levels held `dwell_s` each, after `off_s` with the motors
+    /// off, repeated to the end (which is motors-off).
+    fn stair(duration_s: f64, n: usize, dwell_s: f64, off_s: f64) -> Vec<(f64, f64)> {
+        let mut steps = vec![(0.0, 0.0)];
+        let mut t = off_s;
+        let levels: Vec<f64> = (1..=n)
+            .chain((1..n).rev())
+            .map(|k| k as f64 / n as f64)
+            .collect();
+        'cycles: loop {
+            for &level in &levels {
+                if t + dwell_s > duration_s {
+                    break 'cycles;
+                }
+                steps.push((t, level));
+                t += dwell_s;
+            }
+            steps.push((t, 0.0));
+            t += off_s;
+        }
+        steps.push((t.min(duration_s), 0.0));
+        steps
+    }
+
+    /// Random levels held 1.2 to 4.5 s, one step in six motors-off.
+    fn random_steps(duration_s: f64, rng: &mut Random) -> Vec<(f64, f64)> {
         let mut steps = vec![(0.0, 0.0)];
         let mut t = 4.0;
         while t < duration_s - 4.0 {
@@ -354,17 +423,7 @@ impl Program {
             t += 1.2 + 3.3 * rng.uniform();
         }
         steps.push((t, 0.0));
-        let mut patterns = Vec::new();
-        let mut t = 0.0;
-        while t < duration_s {
-            patterns.push((t, (rng.next() % 4) as usize));
-            t += 2.0 + 4.0 * rng.uniform();
-        }
-        Program {
-            steps,
-            patterns,
-            differential,
-        }
+        steps
     }
 
     fn commands(&self, t: f64, motors: usize) -> Vec<f64> {
@@ -406,7 +465,7 @@ pub fn generate(case: &Case) -> Generated {
         t += (1.0 + 0.04 * (rng.uniform() - 0.5)) / s.rate_hz;
     }
     let duration_s = t;
-    let program = Program::new(duration_s, s.differential, &mut rng);
+    let program = Program::new(s.program, duration_s, s.differential, &mut rng);
 
     let find = |f: fn(&Effect) -> bool| case.effects.iter().find(|e| f(e)).cloned();
     let dead_zone = match find(|e| matches!(e, Effect::DeadZone { .. })) {

@@ -103,6 +103,31 @@ pub struct Context<'a> {
     pub(crate) series_lags: crate::pipeline::design::SeriesLagCache,
 }
 
+impl<'a> Context<'a> {
+    /// The same problem with the baseline's current law of `powers` powers of speed, with
+    /// caches of its own (a design's columns depend on the law; its replays do not, but the
+    /// caches keep only the latest few).
+    pub(crate) fn with_speed_powers(&self, powers: usize) -> Context<'a> {
+        Context {
+            rec: self.rec,
+            nominal: self.nominal,
+            split: self.split,
+            nominal_trace: self.nominal_trace,
+            rec_origin: self.rec_origin.clone(),
+            command_lead: self.command_lead,
+            flight: self.flight,
+            follow_recorded_voltage: self.follow_recorded_voltage,
+            follow_recorded_current: self.follow_recorded_current,
+            speed_powers: powers,
+            armed_current: self.armed_current,
+            motor_groups: self.motor_groups.clone(),
+            motor_current_law: self.motor_current_law.clone(),
+            replays: Default::default(),
+            series_lags: Default::default(),
+        }
+    }
+}
+
 /// The motors of `thr` (one command column per motor) in groups that no row tells apart: the
 /// motors of a group are commanded alike on every row, so a per-motor gain can be fitted only
 /// for the group (a hexacopter whose attitude commands pair opposite motors). Groups are in
