@@ -267,6 +267,14 @@ const LEVELS_PER_COEFFICIENT: usize = 4;
 /// of the total current) is followed instead of left as structure for a name to take up.
 /// Levels are the distinct mean commands over the motors, to 0.001, where it is above 0.
 pub(crate) fn current_law_powers(thr: &[Vec<f64>]) -> usize {
+    (command_levels(thr) / LEVELS_PER_COEFFICIENT)
+        .saturating_sub(1)
+        .clamp(MIN_SPEED_POWERS, MAX_SPEED_POWERS)
+}
+
+/// The distinct mean commands over the motors of `thr`, to 0.001, where it is above 0
+/// ([`current_law_powers`]).
+pub(crate) fn command_levels(thr: &[Vec<f64>]) -> usize {
     let rows = thr.first().map_or(0, Vec::len);
     let mut levels: Vec<i64> = (0..rows)
         .map(|r| thr.iter().map(|c| c[r]).sum::<f64>() / thr.len() as f64)
@@ -275,9 +283,7 @@ pub(crate) fn current_law_powers(thr: &[Vec<f64>]) -> usize {
         .collect();
     levels.sort_unstable();
     levels.dedup();
-    (levels.len() / LEVELS_PER_COEFFICIENT)
-        .saturating_sub(1)
-        .clamp(MIN_SPEED_POWERS, MAX_SPEED_POWERS)
+    levels.len()
 }
 
 /// Inverse noise variance of every row and axis.

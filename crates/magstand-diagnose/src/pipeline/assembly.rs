@@ -281,7 +281,7 @@ pub const MIN_UNEXPLAINED_SHARE: f64 = 0.1;
 /// What remains in the final model's held-out residual: the `unexplained` report where the
 /// structure is significant and large enough to matter, or a warning where it is significant
 /// but too small to name.
-fn unexplained(
+pub(crate) fn unexplained(
     ctx: &Context,
     terms: &[Term],
     last: &ModelFit,
