@@ -582,3 +582,37 @@ pub fn markdown(outcomes: &[Outcome]) -> String {
 fn row_label(o: &Outcome) -> String {
     o.injected.clone()
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `PROGRAM` names a stair with its defaults or all three of its numbers; anything else
+    /// (another program, a count that is not a whole positive number, a dwell of no length,
+    /// a missing number) is no program, which the suite refuses by name.
+    #[test]
+    fn a_stair_program_is_read_from_its_name_and_numbers() {
+        let stair = |steps, dwell_s, off_s| {
+            Some(Commanded::Stair {
+                steps,
+                dwell_s,
+                off_s,
+            })
+        };
+        assert_eq!(stair_program("stair"), stair(8, 6.0, 8.0));
+        assert_eq!(stair_program("stair,10,5,6"), stair(10, 5.0, 6.0));
+        assert_eq!(stair_program("stair, 4, 2.5, 0"), stair(4, 2.5, 0.0));
+        for bad in [
+            "ramp",
+            "stairs",
+            "stair,0,5,6",
+            "stair,2.5,5,6",
+            "stair,8,0,6",
+            "stair,8,5,-1",
+            "stair,8,5",
+            "stair,8,x,6",
+        ] {
+            assert_eq!(stair_program(bad), None, "{bad:?}");
+        }
+    }
+}

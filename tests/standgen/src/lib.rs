@@ -626,3 +626,66 @@ pub fn generate(case: &Case) -> Generated {
         t_s,
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The stair: motors off for `off_s`, then each level up to full command and back down,
+    /// `dwell_s` each, then off again, over and over; no step starts past the end, and the
+    /// recording ends with the motors off.
+    #[test]
+    fn a_stair_goes_up_to_full_command_and_back_after_its_off_time() {
+        let steps = Program::stair(100.0, 4, 5.0, 8.0);
+        let cycle: Vec<f64> = steps.iter().skip(1).take(8).map(|s| s.1).collect();
+        assert_eq!(
+            cycle,
+            [0.25, 0.5, 0.75, 1.0, 0.75, 0.5, 0.25, 0.0],
+            "{steps:?}"
+        );
+        assert_eq!(steps[0], (0.0, 0.0), "{steps:?}");
+        assert_eq!(steps[1].0, 8.0, "{steps:?}");
+        for w in steps[1..9].windows(2) {
+            assert!((w[1].0 - w[0].0 - 5.0).abs() < 1e-12, "{steps:?}");
+        }
+        // The second cycle starts after the off time.
+        assert_eq!(steps[9], (51.0, 0.25), "{steps:?}");
+        assert!(steps.iter().all(|s| s.0 <= 100.0), "{steps:?}");
+        assert_eq!(steps.last().map(|s| s.1), Some(0.0), "{steps:?}");
+    }
+
+    /// A stair's recording commands the stand at its levels only (the differential commands
+    /// leave the mean over the motors where no motor is clipped at full command), and the
+    /// stands drive random steps unless a stair is asked for.
+    #[test]
+    fn a_stair_recording_holds_its_levels() {
+        assert_eq!(Stand::default().program, Commanded::RandomSteps);
+        let stand = Stand {
+            program: Commanded::Stair {
+                steps: 8,
+                dwell_s: 6.0,
+                off_s: 8.0,
+            },
+            ..Stand::default()
+        };
+        let mut rng = Random(7);
+        let program = Program::new(stand.program, 300.0, stand.differential, &mut rng);
+        let mut levels: Vec<i64> = (0..3000)
+            .map(|k| {
+                let cmd = program.commands(k as f64 * 0.1, stand.motors);
+                (cmd.iter().sum::<f64>() / cmd.len() as f64 * 1000.0).round() as i64
+            })
+            .collect();
+        levels.sort_unstable();
+        levels.dedup();
+        // At full command half the motors' differential is clipped: their mean is lower by
+        // half of it there.
+        let clipped_top = ((1.0 - stand.differential / 2.0) * 1000.0).round() as i64;
+        assert_eq!(
+            levels,
+            [0, 125, 250, 375, 500, 625, 750, 875, clipped_top, 1000],
+            "differential {}",
+            stand.differential
+        );
+    }
+}
