@@ -52,6 +52,14 @@ impl Search {
         let (a, b) = self.u_range();
         (b - a) / (self.points.max(2) - 1) as f64
     }
+    /// The sd of the parameter at `u` (search coordinates) from the chi-square's `curvature`
+    /// there in those coordinates, in the parameter's units; None where the curvature does
+    /// not open upward.
+    fn sd_from_curvature(&self, u: f64, curvature: f64) -> Option<f64> {
+        let sd_u = (2.0 / curvature).sqrt();
+        let dtheta_du = if self.log { self.value_at(u) } else { 1.0 };
+        (curvature.is_finite() && curvature > 0.0).then_some(sd_u * dtheta_du)
+    }
 }
 
 /// The best parameters found.
@@ -623,8 +631,7 @@ pub(crate) fn minimize_near_fine_by_parabolas(
             return fallback(&f);
         };
         (u[k], value) = (steps.u, steps.value);
-        let dtheta_du = if s.log { s.value_at(steps.u) } else { 1.0 };
-        sd.push(Some((2.0 / steps.curvature).sqrt() * dtheta_du));
+        sd.push(s.sd_from_curvature(steps.u, steps.curvature));
     }
     Some(Optimum {
         theta: searches
@@ -810,10 +817,7 @@ fn polish(
             let mut down = best_u.clone();
             down[k] -= h;
             let (f_up, f_down) = rayon::join(|| eval(&up), || eval(&down));
-            let curv = (f_up - 2.0 * best + f_down) / (h * h);
-            let sd_u = (2.0 / curv).sqrt();
-            let dtheta_du = if s.log { s.value_at(best_u[k]) } else { 1.0 };
-            (curv.is_finite() && curv > 0.0).then_some(sd_u * dtheta_du)
+            s.sd_from_curvature(best_u[k], (f_up - 2.0 * best + f_down) / (h * h))
         })
         .collect();
     Some(Optimum {

@@ -18,6 +18,7 @@ use crate::{DiagnoseConfig, DiagnoseError};
 use super::design::{ModelFit, Term, fit_model, timing_spread};
 use super::forward::{BaselineFit, SearchOutcome};
 use super::gain::{holdout_rmse, residual_structure, standardized};
+use super::law_shape::richer_law_taking_up_structure;
 
 /// Most rows kept in the plotted residual series.
 const SERIES_POINTS: usize = 1500;
@@ -46,9 +47,39 @@ pub(crate) fn assemble(
         weights,
         withdrawn,
     } = outcome;
-    // Final joint model; the accepted effects switched on with its values in the augmented
+    // Final joint model and the structure it leaves. Where a current law of one more power
+    // of speed takes that structure up, the law's shape is calibrated with it, and the rest
+    // of the assembly is on that law.
+    let mut last = fit_model(ctx, &terms, Some(&weights))?;
+    let mut structure = unexplained(ctx, &terms, &last, rows, cfg);
+    let richer = structure
+        .0
+        .as_ref()
+        .and_then(|_| richer_law_taking_up_structure(ctx, &terms, &weights, rows, cfg));
+    let (richer_ctx, law_warning);
+    let ctx = match richer {
+        Some((r, fit, s)) => {
+            law_warning = Some(format!(
+                "the current law takes {} powers of speed, one more than the {} distinct \
+                 command levels allow it by default: beside {} the final model left structure \
+                 in the held-out residuals large enough to be named `unexplained`, and the \
+                 richer law takes it up. The law's shape is a constant nobody stated, \
+                 calibrated rather than named; with few levels it trades off with a dead zone",
+                r.speed_powers,
+                crate::fit::command_levels(&rec.thr),
+                ctx.speed_powers
+            ));
+            (last, structure) = (fit, s);
+            richer_ctx = r;
+            &richer_ctx
+        }
+        None => {
+            law_warning = None;
+            ctx
+        }
+    };
+    // The accepted effects switched on with the final model's values in the augmented
     // scenario, which also gives their parameters.
-    let last = fit_model(ctx, &terms, Some(&weights))?;
     let mut augmented = ctx.nominal.clone();
     for (t, (report, cols)) in terms
         .iter()
@@ -77,7 +108,7 @@ pub(crate) fn assemble(
     let (reports, calibrated) = separate_calibration(ctx, &terms, reports, &last.weights);
     let mut reports = reports;
     let mut verdict: Vec<String> = reports.iter().map(|r| r.name.clone()).collect();
-    let (rest, small_structure) = unexplained(ctx, &terms, &last, rows, cfg);
+    let (rest, small_structure) = structure;
     if let Some(rest) = rest {
         reports.push(rest);
         verdict.push(UNEXPLAINED.into());
@@ -113,7 +144,11 @@ pub(crate) fn assemble(
             rows: [split.fit_rows(), rec.len() - split.fit_rows()],
         },
         augmented_scenario: augmented.to_toml(),
-        warnings: withdrawn.into_iter().chain(small_structure).collect(),
+        warnings: withdrawn
+            .into_iter()
+            .chain(small_structure)
+            .chain(law_warning)
+            .collect(),
         model: Some(model),
         baseline_model: Some(baseline_model),
     })
@@ -278,6 +313,10 @@ fn model_file(
 /// `unexplained` below).
 pub const MIN_UNEXPLAINED_SHARE: f64 = 0.1;
 
+/// What [`unexplained`] finds in a model's held-out residual: the `unexplained` report, or a
+/// warning of structure too small to name.
+pub(crate) type Structure = (Option<EffectReport>, Option<String>);
+
 /// What remains in the final model's held-out residual: the `unexplained` report where the
 /// structure is significant and large enough to matter, or a warning where it is significant
 /// but too small to name.
@@ -287,7 +326,7 @@ pub(crate) fn unexplained(
     last: &ModelFit,
     rows: &Rows,
     cfg: &DiagnoseConfig,
-) -> (Option<EffectReport>, Option<String>) {
+) -> Structure {
     let resid = without_command_timing(
         ctx,
         &last.fitted.residuals(&ctx.rec.mag_ut),

@@ -2,13 +2,13 @@
 //! zone) moves with the number of powers of speed the law has, which nobody states, so its
 //! uncertainty holds the spread of its optimum over the laws of fewer powers, and of one power
 //! more where the baseline's law has fewer than the most.
+use crate::DiagnoseConfig;
 use crate::effects::{Context, Param};
 use crate::fit::{Design, MAX_SPEED_POWERS, MIN_SPEED_POWERS, Weights, fit};
-
-use crate::DiagnoseConfig;
 use crate::locate::Rows;
 
-use super::design::{Term, as_refs, build_with_lead, fit_model};
+use super::assembly::{Structure, unexplained};
+use super::design::{ModelFit, Term, as_refs, build_with_lead, fit_model};
 
 /// `p` with half the spread `(lo, hi)` of its optimum over the current laws' shapes
 /// ([`law_shape_spread`]) in its sd, and that spread as its basis. At a range limit the
@@ -106,10 +106,11 @@ pub(crate) fn law_shape_spread(
         })
 }
 
-/// The context with the current law of one more power of speed, where the final model of
-/// `terms` (fitted with `weights`) leaves structure large enough to be named `unexplained`
-/// beside the baseline's law and none beside that richer one: the misfit is the law's shape,
-/// a constant nobody stated, which is calibrated, not named. None where the law already has
+/// The context with the current law of one more power of speed, its fit of `terms` (with
+/// `weights`) and what structure that fit leaves ([`unexplained`]), where the final model
+/// beside the baseline's law left structure large enough to be named `unexplained` (the
+/// caller's finding) and the richer law leaves none: the misfit is the law's shape, a
+/// constant nobody stated, which is calibrated, not named. None where the law already has
 /// the most powers, or the richer one leaves the structure too. On the independent
 /// generator's hexacopter driven by an eight-level stair (current `0.4 A + 11 A e^2.3`), the
 /// cubic that eight levels allow left a misfit on every stated recording, named
@@ -120,19 +121,14 @@ pub(crate) fn richer_law_taking_up_structure<'a>(
     weights: &Weights,
     rows: &Rows,
     cfg: &DiagnoseConfig,
-) -> Option<Context<'a>> {
-    use super::assembly::unexplained;
+) -> Option<(Context<'a>, ModelFit, Structure)> {
     if ctx.speed_powers >= MAX_SPEED_POWERS {
         return None;
     }
-    let last = fit_model(ctx, terms, Some(weights)).ok()?;
-    unexplained(ctx, terms, &last, rows, cfg).0?;
     let richer = ctx.with_speed_powers(ctx.speed_powers + 1);
     let last = fit_model(&richer, terms, Some(weights)).ok()?;
-    unexplained(&richer, terms, &last, rows, cfg)
-        .0
-        .is_none()
-        .then_some(richer)
+    let structure = unexplained(&richer, terms, &last, rows, cfg);
+    structure.0.is_none().then_some((richer, last, structure))
 }
 
 /// `design` without the current law's powers of speed above `powers`, nor the terms' columns

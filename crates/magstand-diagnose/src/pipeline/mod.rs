@@ -119,33 +119,7 @@ pub(crate) fn diagnose_with(
     let effects = catalog();
     let outcome = forward::forward_search(&mut ctx, &effects, &base, &rows, cfg, observer)?;
     observer.stage(Stage::Assembling);
-    let richer = law_shape::richer_law_taking_up_structure(
-        &ctx,
-        &outcome.terms,
-        &outcome.weights,
-        &rows,
-        cfg,
-    );
-    let mut d = assembly::assemble(
-        richer.as_ref().unwrap_or(&ctx),
-        nominal,
-        &base,
-        outcome,
-        &rows,
-        cfg,
-    )?;
-    if let Some(richer) = &richer {
-        d.warnings.push(format!(
-            "the current law takes {} powers of speed, one more than the {} distinct command \
-             levels allow it by default: beside {} the final model left structure in the held-out \
-             residuals large enough to be named `unexplained`, and the richer law takes it up. \
-             The law's shape is a constant nobody stated, calibrated rather than named; with \
-             few levels it trades off with a dead zone",
-            richer.speed_powers,
-            crate::fit::command_levels(&rec.thr),
-            ctx.speed_powers
-        ));
-    }
+    let mut d = assembly::assemble(&ctx, nominal, &base, outcome, &rows, cfg)?;
     // A flight's commands come from the import, interpolated at the magnetometer's times.
     if flight.is_none()
         && let Some(hold) = command_hold::held_commands(&rec.thr)
