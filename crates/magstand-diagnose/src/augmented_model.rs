@@ -132,6 +132,11 @@ pub struct AugmentedModel {
     /// is followed then).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub motor_current_law: Option<MotorCurrentLaw>,
+    /// The stand's current as the calibrated law has it, which a hysteresis term's play
+    /// follows. Absent in older files, in models without a hysteresis term, and where the
+    /// law could not be told (the replayed current is followed then).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub current_law: Option<MotorCurrentLaw>,
 }
 
 /// A motor's current as the calibrated current law has it: `sum_j a_per_unit[j] * x_j`, where
@@ -363,7 +368,11 @@ impl AugmentedModel {
                 groups.clone()
             }
         };
-        if let Some(law) = &self.motor_current_law {
+        for (key, law) in [
+            ("motor_current_law", &self.motor_current_law),
+            ("current_law", &self.current_law),
+        ] {
+            let Some(law) = law else { continue };
             let known =
                 |c: &String| self.columns.contains(c) && crate::fit::LawColumn::parse(c).is_some();
             if law.columns.len() != law.a_per_unit.len()
@@ -372,7 +381,7 @@ impl AugmentedModel {
                 || !law.a_per_unit.iter().all(|a| a.is_finite())
             {
                 return Err(bad(format!(
-                    "the model's motor_current_law has columns {:?} and a_per_unit {:?}: expected as many finite values as columns, each column one of the model's current-law columns (driven, {}, speed^1..speed^{})",
+                    "the model's {key} has columns {:?} and a_per_unit {:?}: expected as many finite values as columns, each column one of the model's current-law columns (driven, {}, speed^1..speed^{})",
                     law.columns,
                     law.a_per_unit,
                     crate::fit::ARMED_IN_DEAD_ZONE,
@@ -428,6 +437,7 @@ impl AugmentedModel {
                 .any(|c| c == crate::fit::ARMED_IN_DEAD_ZONE),
             motor_groups,
             motor_current_law: self.motor_current_law.clone(),
+            current_law: self.current_law.clone(),
             replays: Default::default(),
             series_lags: Default::default(),
         };

@@ -51,6 +51,10 @@ fn coefficients_survive_the_file_bit_for_bit() {
             columns: vec!["driven".into(), "speed^1".into()],
             a_per_unit: vec![hard[0], hard[4]],
         }),
+        current_law: Some(MotorCurrentLaw {
+            columns: vec!["speed^1".into()],
+            a_per_unit: vec![hard[2]],
+        }),
     };
     let path = std::env::temp_dir().join(format!("magstand-bit-exact-{}.json", std::process::id()));
     model.save(&path).unwrap();

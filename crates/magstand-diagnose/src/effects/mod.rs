@@ -53,7 +53,7 @@ pub(crate) use dead_zone::DEAD_ZONE_SEARCH;
 pub use dead_zone::DeadZone;
 pub use hysteresis::Hysteresis;
 pub use motor_asymmetry::MotorAsymmetry;
-pub(crate) use motor_asymmetry::calibrated_current_law;
+pub(crate) use motor_asymmetry::{calibrated_current_law, stand_current};
 pub use thermal_drift::ThermalDrift;
 pub use time_offset::TimeOffset;
 
@@ -97,6 +97,11 @@ pub struct Context<'a> {
     /// follows once it is named (see [`MotorCurrentLaw`](crate::augmented_model::MotorCurrentLaw));
     /// None: the nominal motor's current, on which such a term is named.
     pub motor_current_law: Option<crate::augmented_model::MotorCurrentLaw>,
+    /// The stand's current as the baseline's calibrated law has it, which the hysteresis's
+    /// play follows (set once the stand constants are calibrated, where the data tell the
+    /// law's shape from the nominal motor's); None: the replayed current. A play acts on the
+    /// current's value, so a current of another shape moves it at other commands.
+    pub current_law: Option<crate::augmented_model::MotorCurrentLaw>,
     /// Replays already made of this recording, reused by the searches.
     pub(crate) replays: crate::pipeline::design::ReplayCache,
     /// Factors of the field's lags already made for this recording, reused by the searches.
@@ -122,6 +127,7 @@ impl<'a> Context<'a> {
             armed_current: self.armed_current,
             motor_groups: self.motor_groups.clone(),
             motor_current_law: self.motor_current_law.clone(),
+            current_law: self.current_law.clone(),
             replays: Default::default(),
             series_lags: Default::default(),
         }
@@ -679,6 +685,7 @@ impl TestStand {
             armed_current: true,
             motor_groups: motor_groups(&self.rec.thr),
             motor_current_law: None,
+            current_law: None,
             replays: Default::default(),
             series_lags: Default::default(),
         }

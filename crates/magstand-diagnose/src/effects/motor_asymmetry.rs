@@ -181,6 +181,17 @@ fn motor_current(trace: &Trace, law: Option<&MotorCurrentLaw>, m: usize) -> Vec<
         .collect()
 }
 
+/// The stand's current at every row of `trace` as `law` has each motor's: their sum.
+pub(crate) fn stand_current(trace: &Trace, law: &MotorCurrentLaw) -> Vec<f64> {
+    let mut total = vec![0.0; trace.len()];
+    for m in 0..trace.speed.len() {
+        for (t, a) in total.iter_mut().zip(motor_current(trace, Some(law), m)) {
+            *t += a;
+        }
+    }
+    total
+}
+
 /// Per-motor gains from the fitted deviation coefficients of all groups but the last
 /// (`coef[k]` for `groups[k]`): each motor takes its group's coefficient (the last group 0),
 /// less their mean over the motors, so that the gains sum to zero (their common part is the

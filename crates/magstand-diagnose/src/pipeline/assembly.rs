@@ -300,6 +300,12 @@ fn model_file(
             .any(|g| g.len() > 1)
             .then(|| ctx.motor_groups.clone()),
         motor_current_law: ctx.motor_current_law.clone(),
+        // Written only where a term follows it, so that other models' files do not change.
+        current_law: terms
+            .iter()
+            .any(|t| t.effect.name() == crate::effects::Effect::name(&crate::effects::Hysteresis))
+            .then(|| ctx.current_law.clone())
+            .flatten(),
     }
 }
 

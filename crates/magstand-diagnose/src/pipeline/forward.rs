@@ -1044,6 +1044,7 @@ pub(crate) fn forward_search<'e>(
     // The model of the terms so far (the baseline's until a term is in).
     let mut latest: Option<ModelFit> = None;
     let mut calibrating = true;
+    let mut current_law_told = false;
     let mut unchanged: Vec<Candidate> = Vec::new();
     // The richer forms fitted beside the model as it stands (kept while rounds are refused).
     let mut richer_fits = RicherFits::default();
@@ -1126,6 +1127,14 @@ pub(crate) fn forward_search<'e>(
                 .any(|e| is_unstated_constant(*e, ctx) && e.applies(ctx));
         if calibration_round {
             open.retain(|e| is_unstated_constant(*e, ctx) || e.mimics_calibration());
+        } else if !current_law_told {
+            // The stand's current as the calibrated baseline has it, once, for the effects
+            // that act on the current's value (a play); kept from then on, so that a term
+            // named on it is refined and written on the same current.
+            current_law_told = true;
+            if !ctx.follow_recorded_current {
+                ctx.current_law = calibrated_current(ctx, model, cfg.significance);
+            }
         }
         let shared: &Context = ctx;
         observer.stage(Stage::Round {

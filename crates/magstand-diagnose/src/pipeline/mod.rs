@@ -111,6 +111,7 @@ pub(crate) fn diagnose_with(
         armed_current: flight.is_none() && crate::fit::arming_varies(&rec.thr),
         motor_groups: crate::effects::motor_groups(&rec.thr),
         motor_current_law: None,
+        current_law: None,
         replays: Default::default(),
         series_lags: Default::default(),
     };

@@ -1,0 +1,85 @@
+//! Regression: the independent generator's default stand driven by the paper's protocol (an
+//! eight-level stair up and down, 6 s a level, at 50 Hz) with a play of 3 A on its total
+//! current got `thermal_drift` beside `hysteresis`, on both seeds, without a scenario: on one
+//! the drift was even named first. The diagnosis's play acted on the nominal motor's current,
+//! whose shape over the command is not the generator's (a 1.7th power beyond its dead zone).
+//! A play moves its output only where the current changes by more than its width, which on a
+//! stair of such another shape happens at other levels; a heating lag of 19 s fitted the loop
+//! as well as that play (held-out gains 1.100 against 1.090), and the play found was 1.3 A.
+//! The play now acts on the stand's current as the calibrated baseline's law has it
+//! (`Context::current_law`), and the model file carries that law (`current_law`).
+
+use magstand_standgen::{Commanded, Stand};
+use magstand_tests::independent::{Mode, cases, recording_on, rmse_ut, run_case_on};
+
+/// The default generator stand at 50 Hz on an eight-level stair.
+fn stair() -> Stand {
+    Stand {
+        rate_hz: 50.0,
+        program: Commanded::Stair {
+            steps: 8,
+            dwell_s: 6.0,
+            off_s: 8.0,
+        },
+        ..Stand::default()
+    }
+}
+
+#[test]
+fn a_play_on_a_stair_is_named_alone_and_its_loop_has_the_generated_size() {
+    let case = cases()
+        .into_iter()
+        .find(|c| c.label == "hysteresis")
+        .expect("the suite's hysteresis case");
+    let stand = stair();
+    let o = run_case_on(&stand, &case, Mode::Unstated, 1);
+    assert_eq!(o.verdict, ["hysteresis"], "{}", o.diagnosis.summary());
+    // The play's width is in the calibrated current's amperes, whose scale without a logged
+    // current is the nominal motor's; the loop's field, play times gain, is the stand's.
+    let effect = o
+        .diagnosis
+        .effects
+        .iter()
+        .find(|e| e.name == "hysteresis")
+        .expect("named");
+    let param = |name: &str| {
+        effect
+            .params
+            .iter()
+            .find(|p| p.name == name)
+            .unwrap_or_else(|| panic!("no {name} in {:?}", effect.params))
+            .value
+    };
+    let play_a = param("play_a");
+    let generated_ut = [3.0 * 0.05, 3.0 * 0.04, 3.0 * -0.06];
+    for (axis, generated) in ["x", "y", "z"].iter().zip(generated_ut) {
+        let loop_ut = play_a * param(&format!("gain_ut_per_a_{axis}"));
+        assert!(
+            (loop_ut - generated).abs() < 0.15 * generated.abs(),
+            "{axis}: play {play_a} A x gain = {loop_ut} µT, generated {generated} µT"
+        );
+    }
+    // The model file follows the same current: on an unseen seed it predicts the
+    // disturbance, and worse on the replayed current in its place.
+    let model = o.diagnosis.model.clone().expect("a model");
+    assert!(model.current_law.is_some(), "no current law in the model");
+    let path =
+        std::env::temp_dir().join(format!("magstand-stair-play-{}.json", std::process::id()));
+    model.save(&path).unwrap();
+    let loaded = magstand_diagnose::AugmentedModel::load(&path);
+    std::fs::remove_file(&path).ok();
+    let loaded = loaded.unwrap();
+    let (unseen, truth) = recording_on(&stand, &case, 2);
+    let error_ut = |m: &magstand_diagnose::AugmentedModel| {
+        rmse_ut(&m.dist_column(&unseen, "unseen.csv").unwrap(), &truth)
+    };
+    let followed = error_ut(&loaded);
+    let replayed = error_ut(&magstand_diagnose::AugmentedModel {
+        current_law: None,
+        ..loaded
+    });
+    assert!(
+        followed.iter().all(|e| *e < 0.05) && followed.iter().zip(&replayed).all(|(f, r)| f < r),
+        "calibrated current: {followed:?} µT, replayed current: {replayed:?} µT"
+    );
+}
