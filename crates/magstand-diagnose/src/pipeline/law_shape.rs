@@ -1,7 +1,8 @@
 //! The calibrated current law's shape as an uncertainty: a constant fitted beside it (a dead
 //! zone) moves with the number of powers of speed the law has, which nobody states, so its
 //! uncertainty holds the spread of its optimum over the laws of fewer powers, and of one power
-//! more where the baseline's law has fewer than the most.
+//! more where the baseline's law has fewer than the most, each with and without its linear
+//! power.
 use crate::DiagnoseConfig;
 use crate::effects::{Context, Param};
 use crate::fit::{Design, MAX_SPEED_POWERS, MIN_SPEED_POWERS, Weights, fit};
@@ -23,8 +24,8 @@ pub(crate) fn with_law_shape_spread(ctx: &Context, p: Param, (lo, hi): (f64, f64
     }
     .resting_on(&format!(
         "the calibrated current law's shape, which is not stated: with laws of {} to {} powers \
-         of speed the optimum lies between {lo:.4} and {hi:.4}, and the sd holds half that \
-         spread",
+         of speed, with and without the linear one, the optimum lies between {lo:.4} and \
+         {hi:.4}, and the sd holds half that spread",
         MIN_SPEED_POWERS,
         richest_law(ctx)
     ))
@@ -43,11 +44,58 @@ fn richest_law(ctx: &Context) -> usize {
     (ctx.speed_powers + 1).min(MAX_SPEED_POWERS)
 }
 
+/// A current law of [`law_shape_spread`]: the baseline's columns up to `powers` powers of
+/// speed, with or without the first power.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct LawShape {
+    powers: usize,
+    linear: bool,
+}
+
+impl LawShape {
+    /// The laws beside the baseline's own (`powers` powers, with the linear one): from
+    /// [`MIN_SPEED_POWERS`] to `richest` powers, each with and without its linear power. A
+    /// motor draws its idle current and the load of its propeller, whose torque grows with
+    /// the square of its speed: a law without the linear power is as plausible a shape as the
+    /// baseline's, and flatter at low speed, where a dead zone's optimum is decided. On the
+    /// independent generator's hexacopter on an eight-level stair (current `0.4 A +
+    /// 11 A e^2.3`, dead zone 0.06, a first level at 0.125 drawing 0.02 A beyond idle), the
+    /// laws with the linear power put the optimum at 0.12 to 0.165, the first level in the dead
+    /// zone, and its true stated value was rejected beside a lag, a delay or a battery.
+    fn beside(powers: usize, richest: usize) -> Vec<LawShape> {
+        (MIN_SPEED_POWERS..=richest)
+            .flat_map(|p| [true, false].map(|linear| LawShape { powers: p, linear }))
+            .filter(|l| {
+                *l != LawShape {
+                    powers,
+                    linear: true,
+                }
+            })
+            .collect()
+    }
+
+    /// `design`'s columns of this law ([`without_powers_above`], less the linear power's
+    /// columns where it has none).
+    fn of(&self, design: &Design) -> Design {
+        let kept = without_powers_above(design, self.powers);
+        if self.linear {
+            return kept;
+        }
+        let mut out = Design::default();
+        for (name, column) in kept.names.iter().zip(&kept.columns) {
+            if !name.contains("speed^1") {
+                out.push(name.clone(), column.clone());
+            }
+        }
+        out
+    }
+}
+
 /// The range of the optimum of `terms[k]`'s one linear parameter, on every other point of its
-/// search grid with the others held, over the current laws of [`MIN_SPEED_POWERS`] to
-/// [`richest_law`] powers of speed (each a subset of the richest law's columns, and of the
-/// terms' columns made from them), with its refined value (the optimum beside the baseline's
-/// own law). None where there is no other law, or the parameter is not one linear search.
+/// search grid with the others held, over the current laws of [`LawShape::beside`] the
+/// baseline's (each a subset of the richest law's columns, and of the terms' columns made from
+/// them), with its refined value (the optimum beside the baseline's own law). None where the
+/// parameter is not one linear search.
 pub(crate) fn law_shape_spread(
     ctx: &Context,
     terms: &[Term],
@@ -55,10 +103,10 @@ pub(crate) fn law_shape_spread(
     weights: &Weights,
 ) -> Option<(f64, f64)> {
     use rayon::prelude::*;
-    let (min_powers, powers, richest) = (MIN_SPEED_POWERS, ctx.speed_powers, richest_law(ctx));
+    let (powers, richest) = (ctx.speed_powers, richest_law(ctx));
     let [search] = terms[k].effect.search(ctx).try_into().ok()?;
     // The other laws: the baseline's own is the refined value's.
-    let laws: Vec<usize> = (min_powers..=richest).filter(|&p| p != powers).collect();
+    let laws = LawShape::beside(powers, richest);
     if laws.is_empty() || search.log || search.points < 2 {
         return None;
     }
@@ -78,8 +126,8 @@ pub(crate) fn law_shape_spread(
             refs[k].1 = &theta;
             let built = build_with_lead(build_ctx, &refs, ctx.command_lead);
             laws.iter()
-                .map(|&p| {
-                    let design = without_powers_above(&built.design, p);
+                .map(|law| {
+                    let design = law.of(&built.design);
                     fit(
                         &design,
                         &ctx.rec.mag_ut,
@@ -176,6 +224,47 @@ mod tests {
         assert_eq!(richest_law(&most), MAX_SPEED_POWERS);
         let (lo, hi) = law_shape_spread(&most, &terms, 0, &w).expect("laws of fewer powers");
         assert!(lo <= at && at <= hi, "{lo}..{hi} around {at}");
+    }
+
+    /// Beside the baseline's law, every law from the fewest powers to the richest is tried
+    /// with and without its linear power, and a law without it keeps every column but the
+    /// first power's (the terms' columns made from it included).
+    #[test]
+    fn the_laws_beside_the_baseline_include_those_without_the_linear_power() {
+        let shapes = |powers, richest| -> Vec<(usize, bool)> {
+            LawShape::beside(powers, richest)
+                .iter()
+                .map(|l| (l.powers, l.linear))
+                .collect()
+        };
+        assert_eq!(shapes(3, 4), [(3, false), (4, true), (4, false)]);
+        assert_eq!(
+            shapes(5, 5),
+            [(3, true), (3, false), (4, true), (4, false), (5, false)]
+        );
+        let mut d = Design::default();
+        for name in [
+            "driven",
+            "speed^1",
+            "speed^2",
+            "speed^3",
+            "speed^4",
+            "lag:speed^1",
+        ] {
+            d.push(name, vec![0.0; 2]);
+        }
+        let no_linear = LawShape {
+            powers: 3,
+            linear: false,
+        }
+        .of(&d);
+        assert_eq!(
+            no_linear.names,
+            ["driven", "speed^2", "speed^3"],
+            "{:?}",
+            d.names
+        );
+        assert_eq!(no_linear.columns.len(), no_linear.names.len());
     }
 
     /// A law of fewer powers of speed is the baseline's columns up to that power, and the
