@@ -218,6 +218,35 @@ pub fn suite_stand() -> Stand {
     stand
 }
 
+/// `stand` at 50 Hz on the stair `PROGRAM=stair` runs: eight levels of 6 s after 8 s off.
+pub fn on_a_stair(stand: Stand) -> Stand {
+    Stand {
+        rate_hz: 50.0,
+        program: stair_program("stair").expect("the default stair"),
+        ..stand
+    }
+}
+
+/// The suite's case of that label (its effects and logged columns as the suite runs them).
+pub fn suite_case(label: &str) -> Case {
+    cases()
+        .into_iter()
+        .find(|c| c.label == label)
+        .unwrap_or_else(|| panic!("no suite case {label:?}"))
+}
+
+/// Parameter `param` of the effect `effect` in `d`, if that effect was named.
+pub fn named_param<'d>(
+    d: &'d Diagnosis,
+    effect: &str,
+    param: &str,
+) -> Option<&'d magstand_diagnose::Param> {
+    d.effects
+        .iter()
+        .find(|e| e.name == effect)
+        .and_then(|e| e.params.iter().find(|p| p.name == param))
+}
+
 /// The stair program `PROGRAM` names ([`suite_stand`]).
 fn stair_program(text: &str) -> Option<Commanded> {
     let mut parts = text.split(',');

@@ -5,7 +5,7 @@
 //! `cargo run --release -p magstand-tests --bin independent-suite` (results/diagnosis-independent.md).
 use magstand_ident::{Dataset, Fit, FitConfig, InputKind};
 use magstand_standgen::Stand;
-use magstand_tests::independent::{Case, ROWS, recording, rmse_ut};
+use magstand_tests::independent::{Case, ROWS, named_param, recording, rmse_ut, suite_case};
 
 fn control(log_bat_v: bool) -> Case {
     Case {
@@ -16,30 +16,12 @@ fn control(log_bat_v: bool) -> Case {
     }
 }
 
-/// The independent suite's case of that label (its effects and logged columns as the suite
-/// runs them).
-fn suite_case(label: &str) -> Case {
-    magstand_tests::independent::cases()
-        .into_iter()
-        .find(|c| c.label == label)
-        .unwrap_or_else(|| panic!("no suite case {label:?}"))
-}
-
 /// The effect of that name in a diagnosis, if it was named.
 fn named<'d>(
     d: &'d magstand_diagnose::Diagnosis,
     name: &str,
 ) -> Option<&'d magstand_diagnose::diagnosis::EffectReport> {
     d.effects.iter().find(|e| e.name == name)
-}
-
-/// Parameter `param` of the effect `effect`, if that effect was named.
-fn named_param<'d>(
-    d: &'d magstand_diagnose::Diagnosis,
-    effect: &str,
-    param: &str,
-) -> Option<&'d magstand_diagnose::Param> {
-    named(d, effect).and_then(|e| e.params.iter().find(|p| p.name == param))
 }
 
 /// The calibrated stand constant `key` of `d` (its scenario key, e.g. `motors.dead_zone`).
@@ -955,7 +937,7 @@ fn an_asymmetric_motor_follows_the_calibrated_current_law() {
             columns: vec!["speed^9".into()],
             a_per_unit: vec![1.0],
         }),
-        ..model
+        ..model.clone()
     };
     let err = crafted
         .dist_column(&rec, "seen.csv")
@@ -963,6 +945,22 @@ fn an_asymmetric_motor_follows_the_calibrated_current_law() {
         .to_string();
     assert!(
         err.contains("motor_current_law") && err.contains("speed^9"),
+        "{err}"
+    );
+    // So is a hysteresis's current law with a value that is not finite.
+    let crafted = magstand_diagnose::AugmentedModel {
+        current_law: Some(magstand_diagnose::augmented_model::MotorCurrentLaw {
+            columns: vec!["speed^1".into()],
+            a_per_unit: vec![f64::NAN],
+        }),
+        ..model
+    };
+    let err = crafted
+        .dist_column(&rec, "seen.csv")
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("the model's current_law") && err.contains("NaN"),
         "{err}"
     );
 }

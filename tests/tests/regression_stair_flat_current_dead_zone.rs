@@ -10,26 +10,18 @@
 //! linear power: a propeller's load grows with the square of its speed, and such a law is flat
 //! at low speed like the stand's. A wrong dead zone on the same stair is still named.
 
-use magstand_standgen::{Commanded, Stand};
-use magstand_tests::independent::{Mode, cases, run_case_on};
+use magstand_standgen::Stand;
+use magstand_tests::independent::{Mode, named_param, on_a_stair, run_case_on, suite_case};
 
 /// The generator's hexacopter at 50 Hz on an eight-level stair, the suite case `label`,
 /// stated, seed 1.
 fn stated_hexacopter_stair(label: &str) -> magstand_tests::independent::Outcome {
-    let stand = Stand {
-        rate_hz: 50.0,
-        program: Commanded::Stair {
-            steps: 8,
-            dwell_s: 6.0,
-            off_s: 8.0,
-        },
-        ..Stand::held_out()
-    };
-    let case = cases()
-        .into_iter()
-        .find(|c| c.label == label)
-        .unwrap_or_else(|| panic!("no suite case {label:?}"));
-    run_case_on(&stand, &case, Mode::Stated, 1)
+    run_case_on(
+        &on_a_stair(Stand::held_out()),
+        &suite_case(label),
+        Mode::Stated,
+        1,
+    )
 }
 
 #[test]
@@ -41,13 +33,7 @@ fn a_stated_dead_zone_below_a_flat_first_level_holds_beside_a_lag() {
 #[test]
 fn a_wrong_stated_dead_zone_on_the_same_stair_is_still_named() {
     let o = stated_hexacopter_stair("dead zone 0.25 (stated 0.12)");
-    let dz = o
-        .diagnosis
-        .effects
-        .iter()
-        .find(|e| e.name == "dead_zone")
-        .and_then(|e| e.params.iter().find(|p| p.name == "dead_zone"))
-        .map(|p| p.value);
+    let dz = named_param(&o.diagnosis, "dead_zone", "dead_zone").map(|p| p.value);
     // Levels 0.125 apart, and the level above 0.25 draws 0.2 A beyond idle: the data place
     // the dead zone between 0.25 and that level.
     assert!(

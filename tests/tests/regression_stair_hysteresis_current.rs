@@ -9,45 +9,22 @@
 //! The play now acts on the stand's current as the calibrated baseline's law has it
 //! (`Context::current_law`), and the model file carries that law (`current_law`).
 
-use magstand_standgen::{Commanded, Stand};
-use magstand_tests::independent::{Mode, cases, recording_on, rmse_ut, run_case_on};
-
-/// The default generator stand at 50 Hz on an eight-level stair.
-fn stair() -> Stand {
-    Stand {
-        rate_hz: 50.0,
-        program: Commanded::Stair {
-            steps: 8,
-            dwell_s: 6.0,
-            off_s: 8.0,
-        },
-        ..Stand::default()
-    }
-}
+use magstand_standgen::Stand;
+use magstand_tests::independent::{
+    Mode, named_param, on_a_stair, recording_on, rmse_ut, run_case_on, suite_case,
+};
 
 #[test]
 fn a_play_on_a_stair_is_named_alone_and_its_loop_has_the_generated_size() {
-    let case = cases()
-        .into_iter()
-        .find(|c| c.label == "hysteresis")
-        .expect("the suite's hysteresis case");
-    let stand = stair();
+    let case = suite_case("hysteresis");
+    let stand = on_a_stair(Stand::default());
     let o = run_case_on(&stand, &case, Mode::Unstated, 1);
     assert_eq!(o.verdict, ["hysteresis"], "{}", o.diagnosis.summary());
     // The play's width is in the calibrated current's amperes, whose scale without a logged
     // current is the nominal motor's; the loop's field, play times gain, is the stand's.
-    let effect = o
-        .diagnosis
-        .effects
-        .iter()
-        .find(|e| e.name == "hysteresis")
-        .expect("named");
     let param = |name: &str| {
-        effect
-            .params
-            .iter()
-            .find(|p| p.name == name)
-            .unwrap_or_else(|| panic!("no {name} in {:?}", effect.params))
+        named_param(&o.diagnosis, "hysteresis", name)
+            .unwrap_or_else(|| panic!("no {name}: {}", o.diagnosis.summary()))
             .value
     };
     let play_a = param("play_a");

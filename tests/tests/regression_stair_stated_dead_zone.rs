@@ -15,28 +15,11 @@
 //! `unexplained`: the law's shape, a constant nobody stated, now takes one more power where
 //! that power takes up what would be named so.
 
-use magstand_standgen::{Commanded, Stand};
-use magstand_tests::independent::{Mode, cases, run_case_on};
-
-/// `stand` at 50 Hz on an eight-level stair.
-fn on_a_stair(stand: Stand) -> Stand {
-    Stand {
-        rate_hz: 50.0,
-        program: Commanded::Stair {
-            steps: 8,
-            dwell_s: 6.0,
-            off_s: 8.0,
-        },
-        ..stand
-    }
-}
+use magstand_standgen::Stand;
+use magstand_tests::independent::{Mode, named_param, on_a_stair, run_case_on, suite_case};
 
 fn stated_on(stand: &Stand, label: &str) -> magstand_tests::independent::Outcome {
-    let case = cases()
-        .into_iter()
-        .find(|c| c.label == label)
-        .unwrap_or_else(|| panic!("no suite case {label:?}"));
-    run_case_on(stand, &case, Mode::Stated, 1)
+    run_case_on(stand, &suite_case(label), Mode::Stated, 1)
 }
 
 /// The suite case `label` on the default generator stand's stair, stated.
@@ -78,13 +61,7 @@ fn a_stated_wrong_dead_zone_on_a_stair_is_still_named() {
         o.verdict,
         o.diagnosis.summary()
     );
-    let dz = o
-        .diagnosis
-        .effects
-        .iter()
-        .find(|e| e.name == "dead_zone")
-        .and_then(|e| e.params.iter().find(|p| p.name == "dead_zone"))
-        .map(|p| p.value);
+    let dz = named_param(&o.diagnosis, "dead_zone", "dead_zone").map(|p| p.value);
     assert!(
         dz.is_some_and(|v| (v - 0.25).abs() < 0.05),
         "fitted dead zone {dz:?}, generated 0.25"
