@@ -179,7 +179,15 @@ fn separate_calibration(
         let spread = t
             .effect
             .trades_off_with_the_law_shape()
-            .then(|| super::law_shape::law_shape_spread(ctx, terms, k, weights))
+            .then(|| {
+                super::law_shape::law_shape_spread(
+                    ctx,
+                    terms,
+                    k,
+                    weights,
+                    super::law_shape::Laws::WithLinearPower,
+                )
+            })
             .flatten();
         let searches = t.effect.search(ctx);
         let widened = |p: Param| match spread {

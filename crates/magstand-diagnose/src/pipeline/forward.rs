@@ -486,7 +486,13 @@ fn refuse_within_stated(
             theta: theta.clone(),
             theta_sd: sd.clone(),
         });
-        let spread = super::law_shape::law_shape_spread(ctx, &with, terms.len(), weights);
+        let spread = super::law_shape::law_shape_spread(
+            ctx,
+            &with,
+            terms.len(),
+            weights,
+            super::law_shape::Laws::AlsoWithoutLinearPower,
+        );
         if let (Some(sd), Some((lo, hi))) = (shown, spread) {
             shown = Some(sd.hypot(0.5 * (hi - lo)));
         }
