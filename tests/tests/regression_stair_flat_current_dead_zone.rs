@@ -7,8 +7,9 @@
 //! within their dead zone, whose column takes up the level on its own, and the fit is better.
 //! The dead zone's uncertainty held the spread of its optimum over laws of three and four
 //! powers, all with the linear one (0.12 to 0.165). The test of a stated value now also tries
-//! the laws without the linear power: a propeller's load grows with the square of its speed,
-//! and such a law is flat at low speed like the stand's. A wrong dead zone on the same stair
+//! the law of four powers without the linear one (as many columns as the baseline's cubic): a
+//! propeller's load grows with the square of its speed, and such a law is flat at low speed
+//! like the stand's. A wrong dead zone on the same stair
 //! is still named.
 
 use magstand_standgen::Stand;
