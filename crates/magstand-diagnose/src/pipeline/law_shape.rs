@@ -2,7 +2,7 @@
 //! zone) moves with the number of powers of speed the law has, which nobody states, so its
 //! uncertainty holds the spread of its optimum over the laws of fewer powers, and of one power
 //! more where the baseline's law has fewer than the most; a test of a stated value also
-//! tries each without its linear power.
+//! tries the laws of more powers than the baseline's without their linear power.
 use crate::DiagnoseConfig;
 use crate::effects::{Context, Param};
 use crate::fit::{Design, MAX_SPEED_POWERS, MIN_SPEED_POWERS, Weights, fit};
@@ -50,8 +50,9 @@ pub(crate) enum Laws {
     /// The laws from [`MIN_SPEED_POWERS`] to [`richest_law`] powers of speed, each with its
     /// linear power: a reported value's uncertainty.
     WithLinearPower,
-    /// Those, and each without its linear power: a test of a stated value, which is rejected
-    /// only where no plausible shape reconciles it with the data. Not a reported sd: at the
+    /// Those, and the laws of more powers than the baseline's without their linear power
+    /// ([`LawShape::beside`]): a test of a stated value, which is rejected only where no
+    /// plausible shape reconciles it with the data. Not a reported sd: at the
     /// end of a range, a law of this other family can put a one-sided optimum beside the
     /// edge, which as an sd claims a precision the edge does not have (the generator's
     /// octocopter with a battery and a 0.5 s lag: a dead zone calibrated at its lower edge, 0,
