@@ -98,16 +98,16 @@ impl LawShape {
             .collect()
     }
 
-    /// `design`'s columns of this law ([`without_powers_above`], less the linear power's
-    /// columns where it has none).
+    /// `design` without the current law's powers of speed above this law's, nor its linear
+    /// power where it has none, nor the terms' columns made from those.
     fn of(&self, design: &Design) -> Design {
-        let kept = without_powers_above(design, self.powers);
-        if self.linear {
-            return kept;
-        }
+        let dropped = |name: &str| {
+            (self.powers + 1..=MAX_SPEED_POWERS).any(|j| name.contains(&format!("speed^{j}")))
+                || (!self.linear && name.contains("speed^1"))
+        };
         let mut out = Design::default();
-        for (name, column) in kept.names.iter().zip(&kept.columns) {
-            if !name.contains("speed^1") {
+        for (name, column) in design.names.iter().zip(&design.columns) {
+            if !dropped(name) {
                 out.push(name.clone(), column.clone());
             }
         }
@@ -202,20 +202,6 @@ pub(crate) fn richer_law_taking_up_structure<'a>(
     let last = fit_model(&richer, terms, Some(weights)).ok()?;
     let structure = unexplained(&richer, terms, &last, rows, cfg);
     structure.0.is_none().then_some((richer, last, structure))
-}
-
-/// `design` without the current law's powers of speed above `powers`, nor the terms' columns
-/// made from them.
-fn without_powers_above(design: &Design, powers: usize) -> Design {
-    let dropped =
-        |name: &str| (powers + 1..=MAX_SPEED_POWERS).any(|j| name.contains(&format!("speed^{j}")));
-    let mut out = Design::default();
-    for (name, column) in design.names.iter().zip(&design.columns) {
-        if !dropped(name) {
-            out.push(name.clone(), column.clone());
-        }
-    }
-    out
 }
 
 #[cfg(test)]
@@ -314,7 +300,11 @@ mod tests {
         ] {
             d.push(name, vec![0.0; 2]);
         }
-        let kept = without_powers_above(&d, 3);
+        let with_linear = |powers| LawShape {
+            powers,
+            linear: true,
+        };
+        let kept = with_linear(3).of(&d);
         assert_eq!(
             kept.names,
             [
@@ -328,6 +318,6 @@ mod tests {
             d.names
         );
         assert_eq!(kept.columns.len(), kept.names.len());
-        assert_eq!(without_powers_above(&d, 5).names, d.names);
+        assert_eq!(with_linear(5).of(&d).names, d.names);
     }
 }
