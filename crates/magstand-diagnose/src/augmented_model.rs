@@ -132,9 +132,10 @@ pub struct AugmentedModel {
     /// is followed then).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub motor_current_law: Option<MotorCurrentLaw>,
-    /// The stand's current as the calibrated law has it, which a hysteresis term's play
-    /// follows. Absent in older files, in models without a hysteresis term, and where the
-    /// law could not be told (the replayed current is followed then).
+    /// The stand's current as the calibrated law has it, which a hysteresis term's play and a
+    /// thermal drift's heating without `temp_c` follow. Absent in older files, in models
+    /// without such a term, and where the law could not be told (the replayed current is
+    /// followed then).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub current_law: Option<MotorCurrentLaw>,
 }

@@ -3,7 +3,6 @@ use magstand_sim::replay::Trace;
 
 use super::{Context, Effect, EffectFit, Param};
 use crate::optimize::Search;
-use std::borrow::Cow;
 
 /// Magnetized steel near the sensor: the field differs going up and coming down.
 pub struct Hysteresis;
@@ -28,7 +27,7 @@ impl Effect for Hysteresis {
         Play::NAMES
     }
     fn search(&self, ctx: &Context) -> Vec<Search> {
-        let max_a = played_current(ctx, ctx.nominal_trace)
+        let max_a = super::law_current(ctx, ctx.nominal_trace)
             .iter()
             .cloned()
             .fold(1.0, f64::max);
@@ -41,6 +40,9 @@ impl Effect for Hysteresis {
             log: true,
             points: 17,
         }]
+    }
+    fn follows_the_current_law(&self, _ctx: &Context) -> bool {
+        true
     }
     fn apply(&self, _ctx: &Context, s: &mut Scenario, _theta: &[f64]) {
         // The play operator's output is the regressor, computed from the replayed current in
@@ -61,7 +63,7 @@ impl Effect for Hysteresis {
         // The stand's hysteresis module's play operator, on the same current, row by row
         // from rest (`magstand_sim::hysteresis`).
         let mut out = 0.0;
-        let mut play: Vec<f64> = played_current(ctx, trace)
+        let mut play: Vec<f64> = super::law_current(ctx, trace)
             .iter()
             .map(|&a| {
                 out = magstand_sim::hysteresis::play(out, a, p.play_a);
@@ -94,18 +96,5 @@ impl Effect for Hysteresis {
             "µT/A",
         ));
         p
-    }
-}
-
-/// The current the play acts on at every row of `trace`: the stand's as the baseline's law
-/// calibrated it where there is one ([`Context::current_law`]), else the replayed one (the
-/// logged current on a flight that follows it). A play moves its output where the current
-/// changes by more than its width, so a current of another shape, such as the nominal
-/// motor's beside a stand whose current is a 1.7th power of its command, moves it at other
-/// commands, and a heating lag then fits the loop better than the play.
-fn played_current<'t>(ctx: &Context, trace: &'t Trace) -> Cow<'t, [f64]> {
-    match &ctx.current_law {
-        Some(law) if !ctx.follow_recorded_current => Cow::Owned(super::stand_current(trace, law)),
-        _ => Cow::Borrowed(&trace.total_a),
     }
 }

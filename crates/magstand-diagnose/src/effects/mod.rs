@@ -6,6 +6,7 @@ use magstand_core::Recording;
 use magstand_sim::Scenario;
 use magstand_sim::replay::Trace;
 use serde::{Deserialize, Serialize};
+use std::borrow::Cow;
 
 use crate::optimize::Search;
 use magstand_core::held_out::Split;
@@ -368,6 +369,13 @@ pub trait Effect: Sync + Send {
         false
     }
 
+    /// Whether this effect's columns follow the stand's current as the calibrated law has it
+    /// ([`law_current`]), so that a model file with its term records that law. False (the
+    /// default) for columns that other currents or logged columns make.
+    fn follows_the_current_law(&self, _ctx: &Context) -> bool {
+        false
+    }
+
     /// Regressor columns the effect adds (each gets one coefficient per axis), with names.
     /// `law` is the baseline's current law as this model has it, each column by name (built
     /// from `trace`, and lagged where a term lags the currents' field, except for an effect
@@ -391,6 +399,20 @@ pub trait Effect: Sync + Send {
     fn switch_on(&self, ctx: &Context, scenario: &mut Scenario, fitted: &EffectFit) -> Vec<Param> {
         self.apply(ctx, scenario, fitted.theta);
         searched_params(&self.search(ctx), fitted)
+    }
+}
+
+/// The stand's current at every row of `trace`, the one a term of the current's history (a
+/// play, a board's heating) follows: as the baseline's law calibrated it where there is one
+/// ([`Context::current_law`]), else the replayed one (the logged current on a flight that
+/// follows it). The nominal motor's current is another stand's shape: beside a stand whose
+/// current is a 1.7th power of its command, a play on it moves at other commands, and a
+/// heating on it weighs the levels otherwise, so a heating lag fits a play's loop and a
+/// board's time constant comes out long.
+pub(crate) fn law_current<'t>(ctx: &Context, trace: &'t Trace) -> Cow<'t, [f64]> {
+    match &ctx.current_law {
+        Some(law) if !ctx.follow_recorded_current => Cow::Owned(stand_current(trace, law)),
+        _ => Cow::Borrowed(&trace.total_a),
     }
 }
 

@@ -26,12 +26,13 @@ fn tau_search() -> Search {
     }
 }
 
-/// Electrical power drawn at every row, W.
-fn power_w(trace: &Trace) -> Vec<f64> {
+/// Electrical power drawn at every row, W: the supply's voltage times the stand's current
+/// ([`super::law_current`]).
+fn power_w(ctx: &Context, trace: &Trace) -> Vec<f64> {
     trace
         .voltage_v
         .iter()
-        .zip(&trace.total_a)
+        .zip(super::law_current(ctx, trace).iter())
         .map(|(v, i)| v * i)
         .collect()
 }
@@ -41,7 +42,7 @@ impl ThermalDrift {
     /// from the replayed power (least squares in the rise, search in the time constant).
     fn fit_heating(&self, ctx: &Context, trace: &Trace) -> Option<(f64, Option<f64>, f64)> {
         let temp = ctx.rec.temp_c.as_deref()?;
-        let p = power_w(trace);
+        let p = power_w(ctx, trace);
         let t0 = temp[0];
         // The rise that fits best at a time constant, and the residual temperature.
         let fit_at = |tau: f64| {
@@ -81,6 +82,9 @@ impl Effect for ThermalDrift {
     fn parameters(&self) -> &'static [&'static str] {
         Heating::NAMES
     }
+    fn follows_the_current_law(&self, ctx: &Context) -> bool {
+        ctx.rec.temp_c.is_none()
+    }
     fn search(&self, ctx: &Context) -> Vec<Search> {
         if ctx.rec.temp_c.is_some() {
             Vec::new()
@@ -102,7 +106,7 @@ impl Effect for ThermalDrift {
                 .map(|h| {
                     (
                         "lagged_power_w".into(),
-                        first_order_lag(&trace.t_s, &power_w(trace), h.tau_s),
+                        first_order_lag(&trace.t_s, &power_w(ctx, trace), h.tau_s),
                     )
                 })
                 .into_iter()
@@ -147,5 +151,60 @@ impl Effect for ThermalDrift {
                 p
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::augmented_model::MotorCurrentLaw;
+    use crate::effects::TestStand;
+
+    /// A board heated through 60 s by the stand's current, whose law (linear in the
+    /// speed) is not the nominal motor's: with `temp_c` logged, the heating's time constant
+    /// and rise come back from the law's current. On the nominal motor's current, of another
+    /// shape, the same temperature gives another time constant.
+    #[test]
+    fn a_logged_heating_is_fitted_on_the_stands_current_as_its_law_has_it() {
+        // Up a stair of five levels and down again, 40 s a level, sampled every 0.1 s.
+        let t_s: Vec<f64> = (0..4000).map(|k| k as f64 * 0.1).collect();
+        let thr: Vec<f64> = t_s
+            .iter()
+            .map(|t| {
+                let level = (t / 40.0).floor();
+                (if level < 5.0 { level } else { 9.0 - level }) / 4.0
+            })
+            .collect();
+        let stand = TestStand::new(magstand_core::Recording {
+            mag_ut: vec![magstand_core::Vec3::new(20.0, -4.0, 40.0); t_s.len()],
+            thr: vec![thr],
+            overall_only: true,
+            t_s,
+            ..Default::default()
+        });
+        let law = MotorCurrentLaw {
+            columns: vec!["driven".into(), "speed^1".into()],
+            a_per_unit: vec![0.5, 20.0],
+        };
+        let (tau_s, rise_c_per_w) = (60.0, 0.02);
+        let mut ctx = stand.context();
+        ctx.current_law = Some(law.clone());
+        let heat = first_order_lag(&stand.trace.t_s, &power_w(&ctx, &stand.trace), tau_s);
+        let mut rec = stand.rec.clone();
+        rec.temp_c = Some(heat.iter().map(|p| 25.0 + rise_c_per_w * p).collect());
+        let stand = TestStand::new(rec);
+        let mut ctx = stand.context();
+        ctx.current_law = Some(law);
+        let (tau, _, rise) = ThermalDrift.fit_heating(&ctx, &stand.trace).unwrap();
+        assert!(
+            (tau - tau_s).abs() < 0.01 * tau_s && (rise - rise_c_per_w).abs() < 0.01 * rise_c_per_w,
+            "fitted tau {tau} s, rise {rise} °C/W; generated {tau_s} s, {rise_c_per_w} °C/W"
+        );
+        ctx.current_law = None;
+        let (nominal_tau, ..) = ThermalDrift.fit_heating(&ctx, &stand.trace).unwrap();
+        assert!(
+            (nominal_tau - tau_s).abs() > 0.05 * tau_s,
+            "on the nominal current: tau {nominal_tau} s, generated {tau_s} s"
+        );
     }
 }

@@ -311,7 +311,7 @@ fn model_file(
         // Written only where a term follows it, so that other models' files do not change.
         current_law: terms
             .iter()
-            .any(|t| t.effect.name() == crate::effects::Effect::name(&crate::effects::Hysteresis))
+            .any(|t| t.effect.follows_the_current_law(ctx))
             .then(|| ctx.current_law.clone())
             .flatten(),
     }
