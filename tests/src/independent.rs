@@ -441,6 +441,36 @@ pub fn rmse_ut(predicted: &[magstand_core::Vec3], truth: &[[f64; 3]]) -> [f64; 3
     })
 }
 
+/// The disturbance predicted on seed `seed` of `case` by `model` as its file has it (saved
+/// and loaded again), against the generator's truth: RMSE per axis, µT, with the model's
+/// calibrated current law (`current_law`) and with the replayed current in its place.
+pub fn unseen_errors_ut(
+    model: &magstand_diagnose::AugmentedModel,
+    stand: &Stand,
+    case: &Case,
+    seed: u64,
+) -> ([f64; 3], [f64; 3]) {
+    let path = std::env::temp_dir().join(format!(
+        "magstand-unseen-{}-{}.json",
+        case.label.replace(' ', "-"),
+        std::process::id()
+    ));
+    model.save(&path).unwrap();
+    let loaded = magstand_diagnose::AugmentedModel::load(&path);
+    std::fs::remove_file(&path).ok();
+    let loaded = loaded.unwrap();
+    let (unseen, truth) = recording_on(stand, case, seed);
+    let error_ut = |m: &magstand_diagnose::AugmentedModel| {
+        rmse_ut(&m.dist_column(&unseen, "unseen.csv").unwrap(), &truth)
+    };
+    let followed = error_ut(&loaded);
+    let replayed = error_ut(&magstand_diagnose::AugmentedModel {
+        current_law: None,
+        ..loaded
+    });
+    (followed, replayed)
+}
+
 /// The fit methods judged on independent data: identified on seed `ident`, judged on seed
 /// `valid` of a control stand (no effect) with `bat_v` logged. Returns (method, RMSE x y z),
 /// or for the per-motor family only, why the recording cannot determine it (per-motor

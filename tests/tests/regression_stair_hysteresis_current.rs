@@ -11,7 +11,7 @@
 
 use magstand_standgen::Stand;
 use magstand_tests::independent::{
-    Mode, named_param, on_a_stair, recording_on, rmse_ut, run_case_on, suite_case,
+    Mode, named_param, on_a_stair, run_case_on, suite_case, unseen_errors_ut,
 };
 
 #[test]
@@ -40,21 +40,7 @@ fn a_play_on_a_stair_is_named_alone_and_its_loop_has_the_generated_size() {
     // disturbance, and worse on the replayed current in its place.
     let model = o.diagnosis.model.clone().expect("a model");
     assert!(model.current_law.is_some(), "no current law in the model");
-    let path =
-        std::env::temp_dir().join(format!("magstand-stair-play-{}.json", std::process::id()));
-    model.save(&path).unwrap();
-    let loaded = magstand_diagnose::AugmentedModel::load(&path);
-    std::fs::remove_file(&path).ok();
-    let loaded = loaded.unwrap();
-    let (unseen, truth) = recording_on(&stand, &case, 2);
-    let error_ut = |m: &magstand_diagnose::AugmentedModel| {
-        rmse_ut(&m.dist_column(&unseen, "unseen.csv").unwrap(), &truth)
-    };
-    let followed = error_ut(&loaded);
-    let replayed = error_ut(&magstand_diagnose::AugmentedModel {
-        current_law: None,
-        ..loaded
-    });
+    let (followed, replayed) = unseen_errors_ut(&model, &stand, &case, 2);
     assert!(
         followed.iter().all(|e| *e < 0.05) && followed.iter().zip(&replayed).all(|(f, r)| f < r),
         "calibrated current: {followed:?} µT, replayed current: {replayed:?} µT"
