@@ -471,6 +471,19 @@ pub fn unseen_errors_ut(
     (followed, replayed)
 }
 
+/// Asserts that the model file of `o`'s diagnosis carries the calibrated current law
+/// (`current_law`) and, saved and loaded again, predicts seed `seed`'s disturbance within
+/// 0.05 µT on every axis, and better than with the replayed current in that law's place.
+pub fn assert_the_model_file_follows_its_law(o: &Outcome, stand: &Stand, case: &Case, seed: u64) {
+    let model = o.diagnosis.model.clone().expect("a model");
+    assert!(model.current_law.is_some(), "no current law in the model");
+    let (followed, replayed) = unseen_errors_ut(&model, stand, case, seed);
+    assert!(
+        followed.iter().all(|e| *e < 0.05) && followed.iter().zip(&replayed).all(|(f, r)| f < r),
+        "calibrated current: {followed:?} µT, replayed current: {replayed:?} µT"
+    );
+}
+
 /// The fit methods judged on independent data: identified on seed `ident`, judged on seed
 /// `valid` of a control stand (no effect) with `bat_v` logged. Returns (method, RMSE x y z),
 /// or for the per-motor family only, why the recording cannot determine it (per-motor

@@ -11,7 +11,7 @@
 
 use magstand_standgen::Stand;
 use magstand_tests::independent::{
-    Mode, named_param, on_a_stair, run_case_on, suite_case, unseen_errors_ut,
+    Mode, assert_the_model_file_follows_its_law, named_param, on_a_stair, run_case_on, suite_case,
 };
 
 #[test]
@@ -38,11 +38,5 @@ fn a_play_on_a_stair_is_named_alone_and_its_loop_has_the_generated_size() {
     }
     // The model file follows the same current: on an unseen seed it predicts the
     // disturbance, and worse on the replayed current in its place.
-    let model = o.diagnosis.model.clone().expect("a model");
-    assert!(model.current_law.is_some(), "no current law in the model");
-    let (followed, replayed) = unseen_errors_ut(&model, &stand, &case, 2);
-    assert!(
-        followed.iter().all(|e| *e < 0.05) && followed.iter().zip(&replayed).all(|(f, r)| f < r),
-        "calibrated current: {followed:?} µT, replayed current: {replayed:?} µT"
-    );
+    assert_the_model_file_follows_its_law(&o, &stand, &case, 2);
 }

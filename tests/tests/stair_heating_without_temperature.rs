@@ -9,7 +9,8 @@
 
 use magstand_standgen::Stand;
 use magstand_tests::independent::{
-    Case, Mode, named_param, on_a_stair, run_case_on, suite_case, unseen_errors_ut,
+    Case, Mode, assert_the_model_file_follows_its_law, named_param, on_a_stair, run_case_on,
+    suite_case,
 };
 
 #[test]
@@ -30,11 +31,5 @@ fn a_heating_without_temp_c_is_named_and_its_model_file_predicts_another_run() {
         "tau {} ± {sd} s, generated 90 s",
         tau.value
     );
-    let model = o.diagnosis.model.clone().expect("a model");
-    assert!(model.current_law.is_some(), "no current law in the model");
-    let (followed, replayed) = unseen_errors_ut(&model, &stand, &case, 2);
-    assert!(
-        followed.iter().all(|e| *e < 0.05) && followed.iter().zip(&replayed).all(|(f, r)| f < r),
-        "calibrated current: {followed:?} µT, replayed current: {replayed:?} µT"
-    );
+    assert_the_model_file_follows_its_law(&o, &stand, &case, 2);
 }
