@@ -370,7 +370,7 @@ pub trait Effect: Sync + Send {
     }
 
     /// Whether this effect's columns follow the stand's current as the calibrated law has it
-    /// ([`law_current`]), so that a model file with its term records that law. False (the
+    /// (`law_current`), so that a model file with its term records that law. False (the
     /// default) for columns that other currents or logged columns make.
     fn follows_the_current_law(&self, _ctx: &Context) -> bool {
         false
