@@ -220,9 +220,17 @@ pub fn suite_stand() -> Stand {
 
 /// `stand` at 50 Hz on the stair `PROGRAM=stair` runs: eight levels of 6 s after 8 s off.
 pub fn on_a_stair(stand: Stand) -> Stand {
+    on_the_stair(stand, "stair")
+}
+
+/// `stand` at 50 Hz on the stair `program` names as `PROGRAM` does (`stair` or
+/// `stair,STEPS,DWELL_S,OFF_S`).
+pub fn on_the_stair(stand: Stand, program: &str) -> Stand {
     Stand {
         rate_hz: 50.0,
-        program: stair_program("stair").expect("the default stair"),
+        program: stair_program(program).unwrap_or_else(|| {
+            panic!("{program:?}: expected `stair` or `stair,STEPS,DWELL_S,OFF_S`")
+        }),
         ..stand
     }
 }
