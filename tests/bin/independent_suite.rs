@@ -4,6 +4,7 @@
 //! (default 2 seeds, every case, both modes; LABEL keeps the cases whose label contains it,
 //! and LABEL `fit` runs only the fit comparison, LABEL `battery-variants` the battery without
 //! `bat_v` on [`battery_variants`]; FIRST_SEED in the environment starts elsewhere;
+//! MODE=stated or MODE=unstated runs that mode alone, without the fit comparison;
 //! STAND=held-out runs the generator's second stand, `Stand::held_out`, STAND=octocopter its
 //! third, `Stand::octocopter`, and RATE_HZ samples at another rate). With
 //! WRITE_RECORDINGS=DIR it only writes each case's recordings there as CSV
@@ -75,7 +76,7 @@ fn main() {
     }
     let mut outcomes = Vec::new();
     for case in cases().into_iter().filter(|c| c.label.contains(&only)) {
-        for mode in [Mode::Unstated, Mode::Stated] {
+        for mode in modes() {
             for seed in seeds.clone() {
                 let o = run_case(&case, mode, seed);
                 eprintln!(
@@ -87,8 +88,22 @@ fn main() {
         }
     }
     print!("{}", markdown(&outcomes));
-    if only.is_empty() {
+    if only.is_empty() && std::env::var_os("MODE").is_none() {
         print_fit_accuracy();
+    }
+}
+
+/// The modes `MODE` names (`stated` or `unstated`), else both. Exits with an error for any
+/// other value.
+fn modes() -> Vec<Mode> {
+    match std::env::var("MODE").as_deref() {
+        Err(_) => vec![Mode::Unstated, Mode::Stated],
+        Ok("stated") => vec![Mode::Stated],
+        Ok("unstated") => vec![Mode::Unstated],
+        Ok(other) => {
+            eprintln!("error: MODE={other:?}: expected `stated` or `unstated`");
+            std::process::exit(2);
+        }
     }
 }
 
@@ -130,7 +145,7 @@ fn print_battery_variants(seeds: std::ops::Range<u64>) {
     let mut exact = 0;
     let mut runs = 0;
     for (label, stand) in battery_variants() {
-        for mode in [Mode::Unstated, Mode::Stated] {
+        for mode in modes() {
             for seed in seeds.clone() {
                 let o = run_case_on(&stand, &case, mode, seed);
                 eprintln!("{label:44} {mode:?} seed {seed}: {:?}", o.verdict);

@@ -457,21 +457,20 @@ const REJECT_STATED_SD: f64 = 3.0;
 /// ([`law_shape_spread`](super::law_shape::law_shape_spread)), as its report does: the law's
 /// shape is calibrated whatever the scenario states. The spread is profiled (16 replays) only
 /// where the curvature alone would reject the statement.
+///
+/// Returns the refit's held-out gain where it is kept within the statement: a term that
+/// gains no more must also stand beside the constant so refitted.
 fn refuse_within_stated(
     c: &mut Candidate,
     effect: &dyn Effect,
     ctx: &Context,
     terms: &[Term],
     weights: &Weights,
-) {
-    let Some((key, stated)) = stated_constant(effect, ctx) else {
-        return;
-    };
+) -> Option<f64> {
+    let (key, stated) = stated_constant(effect, ctx)?;
     // An effect that re-fits a stand constant searches that constant alone (asserted for the
     // whole catalog by `every_effect_searches_its_declared_parameters`).
-    let Some((theta, sd, fitted)) = &c.fitted else {
-        return;
-    };
+    let (theta, sd, fitted) = c.fitted.as_ref()?;
     let mut shown = sd
         .first()
         .copied()
@@ -508,10 +507,11 @@ fn refuse_within_stated(
             "fitted {key} = {fitted} differs from the stated {stated}, but {why}: the data do not reject the statement"
         )
     } else {
-        return;
+        return None;
     };
     c.result.note = Some(why_not);
     c.result.p_value = None;
+    c.result.improvement
 }
 
 /// Where a new term changes the prediction, in noise units.
@@ -1175,8 +1175,15 @@ pub(crate) fn forward_search<'e>(
             })
             .collect();
         unchanged.clear();
-        for (c, e) in tried.iter_mut().zip(&open) {
-            refuse_within_stated(c, *e, shared, &terms, w);
+        // The stated constant refitted within what the data allow of the statement that
+        // lowers the held-out error most, and that gain.
+        let mut statement_refit: Option<(usize, f64)> = None;
+        for (i, (c, e)) in tried.iter_mut().zip(&open).enumerate() {
+            if let Some(gain) = refuse_within_stated(c, *e, shared, &terms, w)
+                && statement_refit.is_none_or(|(_, g)| gain > g)
+            {
+                statement_refit = Some((i, gain));
+            }
         }
         let k = tried.iter().filter(|c| c.fitted.is_some()).count().max(1);
         let threshold = cfg.significance / k as f64;
@@ -1227,6 +1234,45 @@ pub(crate) fn forward_search<'e>(
                     break;
                 }
                 continue;
+            }
+            // Structure that a stated constant, moved within what the data allow of the
+            // statement, takes up better than the term may be the statement's own tolerance:
+            // the term must then also stand beside the constant so moved.
+            if let Some((r, within)) = statement_refit
+                && tried[i].result.improvement.is_some_and(|g| g <= within)
+                && let Some((r_theta, r_sd, r_fit)) = tried[r].fitted.as_ref()
+            {
+                let mut with = terms.clone();
+                with.push(Term {
+                    effect: open[r],
+                    theta: r_theta.clone(),
+                    theta_sd: r_sd.clone(),
+                });
+                let r_before = r_fit.residuals(&rec.mag_ut);
+                let beside = try_candidate(shared, &with, open[i], w, &r_before, cfg.significance);
+                let why = match beside.fitted.as_ref() {
+                    Some((_, _, b_fit)) if self::significant(&beside.result, threshold) => {
+                        let change = prediction_change(&b_fit.pred, &r_fit.pred, w);
+                        let located =
+                            locate(rows, &change, &all_rows, Signal::Change, cfg.significance);
+                        let evidence = Evidence {
+                            rows,
+                            change: &change,
+                            located: &located,
+                            current: r_fit,
+                        };
+                        replication_failure(shared, open[i], &beside, &r_before, w, &evidence, cfg)
+                    }
+                    _ => Some("its gain is not significant".to_string()),
+                };
+                if let Some(why) = why {
+                    tried[i].result.note = Some(format!(
+                        "refused beside the stated `{}` refitted within the statement (which lowers the held-out error more, mean gain {within:.3}): {}",
+                        open[r].name(),
+                        why.trim_start_matches("refused: ")
+                    ));
+                    continue;
+                }
             }
             let change = prediction_change(&fitted.pred, &cur_fit.pred, w);
             let located = locate(rows, &change, &all_rows, Signal::Change, cfg.significance);
