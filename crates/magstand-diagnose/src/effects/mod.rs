@@ -410,10 +410,21 @@ pub trait Effect: Sync + Send {
 /// heating on it weighs the levels otherwise, so a heating lag fits a play's loop and a
 /// board's time constant comes out long.
 pub(crate) fn law_current<'t>(ctx: &Context, trace: &'t Trace) -> Cow<'t, [f64]> {
-    match &ctx.current_law {
-        Some(law) if !ctx.follow_recorded_current => Cow::Owned(stand_current(trace, law)),
-        _ => Cow::Borrowed(&trace.total_a),
+    match followed_current_law(ctx) {
+        Some(law) => Cow::Owned(stand_current(trace, law)),
+        None => Cow::Borrowed(&trace.total_a),
     }
+}
+
+/// The calibrated current law that terms of the current's history follow
+/// ([`law_current`]): none where it could not be told, or on a flight that follows its
+/// logged current.
+pub(crate) fn followed_current_law<'c>(
+    ctx: &'c Context,
+) -> Option<&'c crate::augmented_model::MotorCurrentLaw> {
+    ctx.current_law
+        .as_ref()
+        .filter(|_| !ctx.follow_recorded_current)
 }
 
 /// The nonlinear parameters of `fitted` reported as `searches` name them, with their

@@ -44,11 +44,7 @@ fn power_w(ctx: &Context, trace: &Trace) -> Vec<f64> {
 /// by a law of its own, which the logged temperature tells), else the power alone. A column
 /// that is zero on every row is left out.
 fn heating_inputs(ctx: &Context, trace: &Trace) -> Vec<Vec<f64>> {
-    let law = ctx
-        .current_law
-        .as_ref()
-        .filter(|_| !ctx.follow_recorded_current);
-    let Some(law) = law else {
+    let Some(law) = super::followed_current_law(ctx) else {
         return vec![power_w(ctx, trace)];
     };
     law.columns

@@ -1217,9 +1217,24 @@ pub(crate) fn forward_search<'e>(
         });
         // The most significant gain that replicates is accepted; each one before it that does
         // not says why in its round.
+        // Why candidate `c` of `effect` does not replicate beside the model fitted as `current`
+        // with residuals `before`, if it does not, and where it changes the prediction.
+        let replicates = |effect: &dyn Effect, c: &Candidate, current: &Fitted, before: &[Vec3]| {
+            let (_, _, fitted) = c.fitted.as_ref().expect("a p-value means fitted");
+            let change = prediction_change(&fitted.pred, &current.pred, w);
+            let located = locate(rows, &change, &all_rows, Signal::Change, cfg.significance);
+            let evidence = Evidence {
+                rows,
+                change: &change,
+                located: &located,
+                current,
+            };
+            let why = replication_failure(shared, effect, c, before, w, &evidence, cfg);
+            (why, located)
+        };
         let mut best = None;
         for (rank, i) in significant.into_iter().enumerate() {
-            let (theta, _, fitted) = tried[i].fitted.as_ref().expect("a p-value means fitted");
+            let (theta, _, _) = tried[i].fitted.as_ref().expect("a p-value means fitted");
             if calibration_round && !calibrates(open[i], shared, theta) {
                 // A finding (a lag slower than any spin-up, a late magnetometer) is not a
                 // calibration: it competes with the whole catalog, where another effect may
@@ -1248,22 +1263,13 @@ pub(crate) fn forward_search<'e>(
                     theta: r_theta.clone(),
                     theta_sd: r_sd.clone(),
                 });
-                let r_before = r_fit.residuals(&rec.mag_ut);
+                let r_before = r_fit.residuals(y);
                 let beside = try_candidate(shared, &with, open[i], w, &r_before, cfg.significance);
-                let why = match beside.fitted.as_ref() {
-                    Some((_, _, b_fit)) if self::significant(&beside.result, threshold) => {
-                        let change = prediction_change(&b_fit.pred, &r_fit.pred, w);
-                        let located =
-                            locate(rows, &change, &all_rows, Signal::Change, cfg.significance);
-                        let evidence = Evidence {
-                            rows,
-                            change: &change,
-                            located: &located,
-                            current: r_fit,
-                        };
-                        replication_failure(shared, open[i], &beside, &r_before, w, &evidence, cfg)
-                    }
-                    _ => Some("its gain is not significant".to_string()),
+                let why = if beside.fitted.is_some() && self::significant(&beside.result, threshold)
+                {
+                    replicates(open[i], &beside, r_fit, &r_before).0
+                } else {
+                    Some("its gain is not significant".to_string())
                 };
                 if let Some(why) = why {
                     tried[i].result.note = Some(format!(
@@ -1274,17 +1280,9 @@ pub(crate) fn forward_search<'e>(
                     continue;
                 }
             }
-            let change = prediction_change(&fitted.pred, &cur_fit.pred, w);
-            let located = locate(rows, &change, &all_rows, Signal::Change, cfg.significance);
-            let evidence = Evidence {
-                rows,
-                change: &change,
-                located: &located,
-                current: cur_fit,
-            };
-            match replication_failure(shared, open[i], &tried[i], &before, w, &evidence, cfg) {
-                Some(why) => tried[i].result.note = Some(why),
-                None => {
+            match replicates(open[i], &tried[i], cur_fit, &before) {
+                (Some(why), _) => tried[i].result.note = Some(why),
+                (None, located) => {
                     best = Some((i, located));
                     break;
                 }
