@@ -5,6 +5,8 @@ use magstand_core::{Recording, Vec3};
 use magstand_sim::ValidScenario;
 use magstand_sim::replay::{Logged, replay_logged};
 
+use super::law_shape::{Laws, law_shape_spreads, with_law_shape_spread};
+
 use crate::augmented_model::{AugmentedModel, AugmentedTerm};
 use crate::diagnosis::{
     Baseline, Diagnosis, EffectReport, FORMAT, Series, Settings, SimulationAgreement, Stage,
@@ -176,25 +178,25 @@ fn separate_calibration(
     let mut calibrated = Vec::new();
     for (k, (t, mut report)) in terms.iter().zip(reports).enumerate() {
         let constant = t.effect.stand_constant(ctx);
-        let spread = t
+        let calibration = super::forward::calibrates(t.effect, ctx, &t.theta);
+        // A finding is reported beside the laws of its test's form; a calibration beside the
+        // laws without the linear power too (`Laws::Calibration`).
+        let laws = if calibration {
+            Laws::Calibration
+        } else {
+            Laws::WithLinearPower
+        };
+        let spreads = t
             .effect
             .trades_off_with_the_law_shape()
-            .then(|| {
-                super::law_shape::law_shape_spread(
-                    ctx,
-                    terms,
-                    k,
-                    weights,
-                    super::law_shape::Laws::WithLinearPower,
-                )
-            })
+            .then(|| law_shape_spreads(ctx, terms, k, weights, laws))
             .flatten();
         let searches = t.effect.search(ctx);
-        let widened = |p: Param| match spread {
-            Some(range) => super::law_shape::with_law_shape_spread(ctx, p, range),
+        let widened = |p: Param| match spreads {
+            Some(s) => with_law_shape_spread(ctx, p, s.all, laws),
             None => p,
         };
-        if super::forward::calibrates(t.effect, ctx, &t.theta) {
+        if calibration {
             let (key, _) = constant.expect("a calibration has a stand constant");
             // A calibrated value at the edge of its search range (a spin-up at the fastest one
             // searched, on a stand whose current follows each command at once) is a limit,
@@ -203,8 +205,12 @@ fn separate_calibration(
             // So is one that trades off with the law's shape where every law of fewer powers
             // of speed places it at the same edge (a spread of no width: the third generator
             // stand's dead zone at 0, reported as 0 with no sd and the law's shape as basis).
+            // The laws with the linear power decide that: at an edge the chi-square has no
+            // curvature, and a law without the linear power that places its optimum just
+            // beside the edge would give an sd that claims a precision the edge does not have
+            // (the third stand's dead zone of 0.10, at 0 beside a 0.5 s lag: 0 +- 0.02).
             let limit = super::forward::search_at_bound(ctx, t.effect, &t.theta)
-                .filter(|_| spread.is_none_or(|(lo, hi)| lo == hi));
+                .filter(|_| spreads.is_none_or(|s| s.with_linear.0 == s.with_linear.1));
             calibrated.extend(report.params.into_iter().map(|p| {
                 // A report's searched parameters carry their search's name.
                 let at_limit = limit.as_ref().filter(|(s, ..)| s.name == p.name);
