@@ -443,6 +443,41 @@ fn a_calibrated_dead_zone_holds_the_laws_without_the_linear_power() {
     );
 }
 
+/// Regression: a play's width was reported in amperes with the curvature's sd, where the
+/// amperes are the nominal motor's: the field calibrates the current's shape, not its scale,
+/// and the current law's amperes come from a least-squares match to the nominal motor's
+/// current. On the generator's hexacopter (a play of 3 A on a total of up to 68 A, no current
+/// logged) it read 4.53 +- 0.049 A, 31 sd off, and on its octocopter 5.4 to 5.8 A. Where no
+/// current is logged and the scenario does not state the motor's constants, the play and its
+/// gains now have no sd and say what they rest on, and `play_fraction`, the play over the
+/// largest current the recording draws in the same amperes, does not rest on the scale (12
+/// diagnoses of three stands' plays: within a fifth of the generator's share).
+#[test]
+fn a_plays_amperes_rest_on_the_nominal_motor_and_its_share_of_the_current_does_not() {
+    use magstand_tests::independent::{Mode, run_case_on};
+    let stand = Stand::held_out();
+    let o = run_case_on(&stand, &suite_case("hysteresis"), Mode::Unstated, 1);
+    assert_named_exactly(&o, &["hysteresis"], "hexacopter, seed 1, unstated");
+    let play = named_param(&o.diagnosis, "hysteresis", "play_a").expect("the play");
+    assert!(
+        play.sd.is_none()
+            && play
+                .basis
+                .as_deref()
+                .is_some_and(|b| b.contains("nominal motor's")),
+        "{play:?}"
+    );
+    let share = named_param(&o.diagnosis, "hysteresis", "play_fraction").expect("its share");
+    // The generator's play over its largest total current (every motor at full command).
+    let largest_a = stand.motors as f64 * (stand.idle_a + stand.full_a);
+    let truth = 3.0 / largest_a;
+    assert!(
+        (share.value / truth - 1.0).abs() < 0.2,
+        "play share {} against the generator's {truth} (3 A of {largest_a} A): {share:?}",
+        share.value
+    );
+}
+
 /// Regression: with `bat_v` and `bat_a` logged, the pack reported beside `battery_sag` was the
 /// one that gives the logged voltage through the simulator's motors' current, with the
 /// chi-square's curvature as its sd: on the held-out hexacopter (6S, 4 Ah, 0.03 ohm) the

@@ -80,7 +80,7 @@ impl Effect for Hysteresis {
         }
         vec![("play_a".into(), play)]
     }
-    fn switch_on(&self, _ctx: &Context, s: &mut Scenario, f: &EffectFit) -> Vec<Param> {
+    fn switch_on(&self, ctx: &Context, s: &mut Scenario, f: &EffectFit) -> Vec<Param> {
         let (Some(play), Some(sd)) = (Play::from_slice(f.theta), Play::from_slice(f.theta_sd))
         else {
             return Vec::new();
@@ -95,6 +95,53 @@ impl Effect for Hysteresis {
             f.coef_sd[0],
             "µT/A",
         ));
+        if ctx.follow_recorded_current || current_scale_stated(ctx.nominal) {
+            return p;
+        }
+        // The field gives the current's shape, not its amperes: those are the nominal motor's,
+        // a default, and no sd in them holds the stand's. The play as a share of the largest
+        // current the recording draws does not rest on that scale, only on the law's shape
+        // (on the independent generator's three stands, whose play is 3 A of about 66 A, the
+        // amperes came out 2.6 to 5.8 +- 0.03 to 0.1, the share within a fifth of the truth).
+        let full_a = super::law_current(ctx, ctx.nominal_trace)
+            .iter()
+            .cloned()
+            .fold(0.0, f64::max);
+        let basis = format!(
+            "the current as the field calibrates it: its amperes are the nominal motor's, whose \
+             scale nobody stated (log bat_a, or state the motor's kv, winding resistance and \
+             torque coefficient, for the stand's own), and its shape the calibrated current \
+             law's, so no sd (the curvature's, in those amperes, is {}); play_fraction, the play \
+             over the largest current the recording draws ({full_a:.2} A in those amperes), \
+             rests on the shape only",
+            sd.play_a.map_or("none".into(), |sd| format!("{sd:.3}"))
+        );
+        let mut p: Vec<Param> = p
+            .into_iter()
+            .map(|q| Param { sd: None, ..q }.resting_on(&basis))
+            .collect();
+        if full_a > 0.0 {
+            let share = Param::new(
+                "play_fraction",
+                play.play_a / full_a,
+                None,
+                "of the largest current",
+            );
+            p.insert(1, share.resting_on(&basis));
+        }
         p
     }
+}
+
+/// Whether `scenario` states the motor constants that set its current's scale in amperes:
+/// the velocity constant, the winding resistance and the propeller's torque coefficient.
+/// Elsewhere a current in amperes that the field calibrated is the nominal motor's.
+fn current_scale_stated(scenario: &Scenario) -> bool {
+    [
+        "motors.kv_rpm_per_v",
+        "motors.winding_resistance_ohm",
+        "motors.torque_coeff_nms2",
+    ]
+    .iter()
+    .all(|key| scenario.states(key))
 }
