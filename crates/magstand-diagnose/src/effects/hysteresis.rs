@@ -95,7 +95,7 @@ impl Effect for Hysteresis {
             f.coef_sd[0],
             "µT/A",
         ));
-        if ctx.follow_recorded_current || current_scale_stated(ctx.nominal) {
+        if !super::amperes_are_nominal(ctx) {
             return p;
         }
         // The field gives the current's shape, not its amperes: those are the nominal motor's,
@@ -131,17 +131,4 @@ impl Effect for Hysteresis {
         }
         p
     }
-}
-
-/// Whether `scenario` states the motor constants that set its current's scale in amperes:
-/// the velocity constant, the winding resistance and the propeller's torque coefficient.
-/// Elsewhere a current in amperes that the field calibrated is the nominal motor's.
-fn current_scale_stated(scenario: &Scenario) -> bool {
-    [
-        "motors.kv_rpm_per_v",
-        "motors.winding_resistance_ohm",
-        "motors.torque_coeff_nms2",
-    ]
-    .iter()
-    .all(|key| scenario.states(key))
 }

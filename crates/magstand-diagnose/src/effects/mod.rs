@@ -416,6 +416,22 @@ pub(crate) fn law_current<'t>(ctx: &Context, trace: &'t Trace) -> Cow<'t, [f64]>
     }
 }
 
+/// Whether a current in amperes that the diagnosis works with is the nominal motor's, a
+/// default: the field calibrates the current's shape, not its scale, so where no current is
+/// logged (and followed) and the scenario does not state the motor constants that set the
+/// scale (the velocity constant, the winding resistance and the propeller's torque
+/// coefficient), a parameter per ampere, or in amperes, rests on the nominal motor's.
+pub(crate) fn amperes_are_nominal(ctx: &Context) -> bool {
+    !ctx.follow_recorded_current
+        && ![
+            "motors.kv_rpm_per_v",
+            "motors.winding_resistance_ohm",
+            "motors.torque_coeff_nms2",
+        ]
+        .iter()
+        .all(|key| ctx.nominal.states(key))
+}
+
 /// The calibrated current law that terms of the current's history follow
 /// ([`law_current`]): none where it could not be told, or on a flight that follows its
 /// logged current.

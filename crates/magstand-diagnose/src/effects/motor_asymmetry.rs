@@ -327,6 +327,8 @@ impl Effect for MotorAsymmetry {
         });
         let fitted_sd = per_motor(f.coef_sd, groups, n);
         let in_last = |m: usize| groups.last().is_some_and(|g| g.contains(&m));
+        let nominal_amperes = super::amperes_are_nominal(ctx);
+        let law = ctx.motor_current_law.as_ref();
         g.iter()
             .enumerate()
             .flat_map(|(m, g)| {
@@ -337,7 +339,59 @@ impl Effect for MotorAsymmetry {
                         fitted_sd[m][a]
                     }
                 });
-                Param::axes(&format!("motor{}_gain_ut_per_a", m + 1), *g, sd, "µT/A")
+                let gains = Param::axes(&format!("motor{}_gain_ut_per_a", m + 1), *g, sd, "µT/A");
+                // Motors commanded alike throughout are one group: the data tell only the
+                // group's sum, which each of them reports an even share of.
+                let shared = groups
+                    .iter()
+                    .find(|group| group.len() > 1 && group.contains(&m))
+                    .map(|group| {
+                        let names: Vec<String> =
+                            group.iter().map(|k| (k + 1).to_string()).collect();
+                        format!(
+                            "motors {} take the same commands throughout, so the data tell only \
+                             their sum, of which each reports an even share",
+                            names.join(", ")
+                        )
+                    });
+                if !nominal_amperes {
+                    return match &shared {
+                        Some(why) => gains.into_iter().map(|q| q.resting_on(why)).collect(),
+                        None => gains,
+                    };
+                }
+                // Per ampere of the nominal motor's scale, a default: the field the gain adds
+                // at the motor's largest current does not rest on it (on the independent
+                // generator's hexacopter, whose motors draw up to 11.4 A, the gains came out
+                // 0.63 of the generator's, +- 1.5 %).
+                let largest_a = motor_current(ctx.nominal_trace, law, m)
+                    .into_iter()
+                    .fold(0.0, f64::max);
+                let basis = format!(
+                    "the motor's current as the field calibrates it, in the nominal motor's \
+                     amperes, whose scale nobody stated (log bat_a, or state the motor's kv, \
+                     winding resistance and torque coefficient, for the stand's own): the gain \
+                     has no sd; motor{k}_field_at_largest_ut_* is the gain times the motor's \
+                     largest current ({largest_a:.2} A in those amperes), which does not rest on \
+                     them",
+                    k = m + 1
+                );
+                let at_largest = Param::axes(
+                    &format!("motor{}_field_at_largest_ut", m + 1),
+                    g.map(|g| g * largest_a),
+                    sd.map(|sd| sd * largest_a),
+                    "µT",
+                );
+                let basis = match &shared {
+                    Some(why) => format!("{basis}; {why}"),
+                    None => basis,
+                };
+                gains
+                    .into_iter()
+                    .map(|q| Param { sd: None, ..q })
+                    .chain(at_largest)
+                    .map(|q| q.resting_on(&basis))
+                    .collect()
             })
             .collect()
     }
