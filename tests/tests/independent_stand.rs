@@ -396,15 +396,23 @@ fn a_calibrated_dead_zone_holds_the_spread_over_the_current_laws_shapes() {
     use magstand_tests::independent::{Mode, run_case_on};
     let stand = Stand::held_out();
     let o = run_case_on(&stand, &suite_case("control"), Mode::Unstated, 1);
+    assert_dead_zone_within(&o, &stand, 2.0, "current law");
+}
+
+/// Asserts that `o`'s calibrated dead zone lies within `sds` of its sd from `stand`'s, and
+/// that its basis mentions `basis`.
+fn assert_dead_zone_within(
+    o: &magstand_tests::independent::Outcome,
+    stand: &Stand,
+    sds: f64,
+    basis: &str,
+) {
     let dz = calibrated(&o.diagnosis, "motors.dead_zone");
     let sd = dz.sd.unwrap_or_else(|| panic!("{dz:?} has no sd"));
     assert!(
-        (dz.value - stand.dead_zone).abs() <= 2.0 * sd
-            && dz
-                .basis
-                .as_deref()
-                .is_some_and(|b| b.contains("current law")),
-        "dead zone {} +- {sd}, the generator's {}: {dz:?}",
+        (dz.value - stand.dead_zone).abs() <= sds * sd
+            && dz.basis.as_deref().is_some_and(|b| b.contains(basis)),
+        "dead zone {} +- {sd}, the generator's {} (within {sds} sd, basis on {basis:?}): {dz:?}",
         dz.value,
         stand.dead_zone
     );
@@ -429,18 +437,7 @@ fn a_calibrated_dead_zone_holds_the_laws_without_the_linear_power() {
         &["hysteresis"],
         "default stand at 50 Hz, seed 1, unstated",
     );
-    let dz = calibrated(&o.diagnosis, "motors.dead_zone");
-    let sd = dz.sd.unwrap_or_else(|| panic!("{dz:?} has no sd"));
-    assert!(
-        (dz.value - stand.dead_zone).abs() <= 3.0 * sd
-            && dz
-                .basis
-                .as_deref()
-                .is_some_and(|b| b.contains("without the linear power")),
-        "dead zone {} +- {sd}, the generator's {}: {dz:?}",
-        dz.value,
-        stand.dead_zone
-    );
+    assert_dead_zone_within(&o, &stand, 3.0, "without the linear power");
 }
 
 /// Regression: a play's width was reported in amperes with the curvature's sd, where the
