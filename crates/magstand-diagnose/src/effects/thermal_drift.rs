@@ -38,6 +38,16 @@ fn power_w(ctx: &Context, trace: &Trace) -> Vec<f64> {
         .collect()
 }
 
+/// Whether the power a heating follows is in watts nobody stated: the nominal motor's amperes
+/// ([`super::amperes_are_nominal`]), or a supply voltage neither logged nor stated.
+fn watts_are_nominal(ctx: &Context) -> bool {
+    let voltage_known = ctx.follow_recorded_voltage
+        || ["supply.voltage_v", "supply.cells"]
+            .iter()
+            .any(|key| ctx.nominal.states(key));
+    super::amperes_are_nominal(ctx) || !voltage_known
+}
+
 /// What heats the board where `temp_c` is logged, each column free in its weight: the
 /// supply's voltage times each column of the stand's calibrated current law summed over the
 /// motors (a board warmed by a conductor's losses, or by a regulator's, follows the current
@@ -220,12 +230,42 @@ impl Effect for ThermalDrift {
                 let rise = s.thermal.rise_c_per_w.max(1e-6);
                 s.thermal.offset_ut_per_c = f.coef[0].map(|c| c / rise);
                 let mut p = vec![Param::new("tau_s", heating.tau_s, sd.tau_s, "s")];
-                p.extend(Param::axes(
-                    "offset_ut_per_w",
-                    f.coef[0],
-                    f.coef_sd[0],
-                    "µT/W",
-                ));
+                let per_w = Param::axes("offset_ut_per_w", f.coef[0], f.coef_sd[0], "µT/W");
+                if !watts_are_nominal(ctx) {
+                    p.extend(per_w);
+                    return p;
+                }
+                // The watts are the nominal motor's amperes times a voltage nobody stated: the
+                // field the heating settles at under the recording's largest power does not
+                // rest on that scale, only on the law's shape (on the independent generator's
+                // default stand, stair, seed 1, without `temp_c`: the offsets per watt 1.4
+                // times the generator's, +- 1.5 %; the settled field within a tenth of it on
+                // three stands' random steps and stairs, where its curvature's sd held it on 21
+                // of 36 axis values, so it has none either).
+                let largest_w = power_w(ctx, ctx.nominal_trace)
+                    .into_iter()
+                    .fold(0.0, f64::max);
+                let basis = format!(
+                    "the power as the replay gives it: the nominal motor's amperes, or a supply \
+                     voltage, that nobody stated or logged (log temp_c, or bat_v and bat_a, or \
+                     state the motor's kv, winding resistance and torque coefficient and the \
+                     supply, for the stand's own), and its shape the calibrated current law's, \
+                     so no sd; offset_at_largest_power_ut_* is the field the heating settles at \
+                     under the largest power the recording draws ({largest_w:.1} W in those \
+                     watts), which rests on the shape only"
+                );
+                let at_largest = Param::axes(
+                    "offset_at_largest_power_ut",
+                    f.coef[0].map(|c| c * largest_w),
+                    [0.0; 3],
+                    "µT",
+                );
+                p.extend(
+                    per_w
+                        .into_iter()
+                        .chain(at_largest)
+                        .map(|q| Param { sd: None, ..q }.resting_on(&basis)),
+                );
                 p
             }
         }
