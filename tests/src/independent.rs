@@ -243,6 +243,33 @@ pub fn suite_case(label: &str) -> Case {
         .unwrap_or_else(|| panic!("no suite case {label:?}"))
 }
 
+/// Asserts, per axis, that `effect`'s parameter `{per_unit}_{axis}` in `d` rests on a basis
+/// without an sd (a value per nominal ampere or watt, a scale nobody stated), and that
+/// `{scale_free}_{axis}` (the same at the recording's largest current or power) `holds`
+/// against `truth[axis]`, printing both where it does not.
+pub fn assert_scale_free_axes(
+    d: &Diagnosis,
+    effect: &str,
+    (per_unit, scale_free): (&str, &str),
+    truth: [f64; 3],
+    holds: impl Fn(&magstand_diagnose::Param, f64) -> bool,
+) {
+    for (a, axis) in ["x", "y", "z"].iter().enumerate() {
+        let name = format!("{per_unit}_{axis}");
+        let p = named_param(d, effect, &name).unwrap_or_else(|| panic!("no {effect}.{name}"));
+        assert!(p.sd.is_none() && p.basis.is_some(), "{p:?}");
+        let name = format!("{scale_free}_{axis}");
+        let p = named_param(d, effect, &name).unwrap_or_else(|| panic!("no {effect}.{name}"));
+        assert!(
+            holds(p, truth[a]),
+            "{effect}.{name}: {} +- {:?}, generated {}: {p:?}",
+            p.value,
+            p.sd,
+            truth[a]
+        );
+    }
+}
+
 /// Parameter `param` of the effect `effect` in `d`, if that effect was named.
 pub fn named_param<'d>(
     d: &'d Diagnosis,

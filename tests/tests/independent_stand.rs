@@ -5,7 +5,9 @@
 //! `cargo run --release -p magstand-tests --bin independent-suite` (results/diagnosis-independent.md).
 use magstand_ident::{Dataset, Fit, FitConfig, InputKind};
 use magstand_standgen::Stand;
-use magstand_tests::independent::{Case, ROWS, named_param, recording, rmse_ut, suite_case};
+use magstand_tests::independent::{
+    Case, ROWS, assert_scale_free_axes, named_param, recording, rmse_ut, suite_case,
+};
 
 fn control(log_bat_v: bool) -> Case {
     Case {
@@ -961,28 +963,13 @@ fn a_motor_asymmetry_is_named_where_motors_are_commanded_in_pairs() {
     // field against the six motors' mean of 1.1 times it, at up to 11.4 A.
     let stand = Stand::held_out();
     let largest_a = stand.idle_a + stand.full_a;
-    for (a, axis) in ["x", "y", "z"].iter().enumerate() {
-        let gain = named_param(
-            &o.diagnosis,
-            "motor_asymmetry",
-            &format!("motor3_gain_ut_per_a_{axis}"),
-        )
-        .expect("the gain");
-        assert!(gain.sd.is_none() && gain.basis.is_some(), "{gain:?}");
-        let field = named_param(
-            &o.diagnosis,
-            "motor_asymmetry",
-            &format!("motor3_field_at_largest_ut_{axis}"),
-        )
-        .expect("the field at the largest current");
-        let truth = 0.5 * stand.gains_ut_per_a[2][a] * largest_a;
-        let sd = field.sd.unwrap_or_else(|| panic!("{field:?} has no sd"));
-        assert!(
-            (field.value - truth).abs() < 3.0 * sd,
-            "{axis}: {} +- {sd} µT at the largest current, generated {truth}",
-            field.value
-        );
-    }
+    assert_scale_free_axes(
+        &o.diagnosis,
+        "motor_asymmetry",
+        ("motor3_gain_ut_per_a", "motor3_field_at_largest_ut"),
+        stand.gains_ut_per_a[2].map(|g| 0.5 * g * largest_a),
+        |p, truth| p.sd.is_some_and(|sd| (p.value - truth).abs() < 3.0 * sd),
+    );
 }
 
 /// Regression: on the held-out hexacopter with its constants stated, the motor made 1.6 times

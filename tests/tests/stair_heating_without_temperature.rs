@@ -9,8 +9,8 @@
 
 use magstand_standgen::Stand;
 use magstand_tests::independent::{
-    Case, Mode, assert_the_model_file_follows_its_law, named_param, on_a_stair, run_case_on,
-    suite_case,
+    Case, Mode, assert_scale_free_axes, assert_the_model_file_follows_its_law, named_param,
+    on_a_stair, run_case_on, suite_case,
 };
 
 #[test]
@@ -39,27 +39,12 @@ fn a_heating_without_temp_c_is_named_and_its_model_file_predicts_another_run() {
     // every motor at full command) and moves the field by its offsets per °C.
     let largest_a = stand.motors as f64 * (stand.idle_a + stand.full_a);
     let offsets_per_c = [0.06, -0.04, 0.08];
-    for (a, axis) in ["x", "y", "z"].iter().enumerate() {
-        let per_w = named_param(
-            &o.diagnosis,
-            "thermal_drift",
-            &format!("offset_ut_per_w_{axis}"),
-        )
-        .expect("the offset per watt");
-        assert!(per_w.sd.is_none() && per_w.basis.is_some(), "{per_w:?}");
-        let settled = named_param(
-            &o.diagnosis,
-            "thermal_drift",
-            &format!("offset_at_largest_power_ut_{axis}"),
-        )
-        .expect("the offset at the largest power");
-        assert!(settled.sd.is_none(), "{settled:?}");
-        let truth = offsets_per_c[a] * 0.25 * largest_a;
-        assert!(
-            (settled.value / truth - 1.0).abs() < 0.1,
-            "{axis}: {} µT settled at the largest power, generated {truth}: {settled:?}",
-            settled.value
-        );
-    }
+    assert_scale_free_axes(
+        &o.diagnosis,
+        "thermal_drift",
+        ("offset_ut_per_w", "offset_at_largest_power_ut"),
+        offsets_per_c.map(|c| c * 0.25 * largest_a),
+        |p, truth| p.sd.is_none() && (p.value / truth - 1.0).abs() < 0.1,
+    );
     assert_the_model_file_follows_its_law(&o, &stand, &case, 2);
 }
