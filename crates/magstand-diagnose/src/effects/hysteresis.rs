@@ -27,10 +27,7 @@ impl Effect for Hysteresis {
         Play::NAMES
     }
     fn search(&self, ctx: &Context) -> Vec<Search> {
-        let max_a = super::law_current(ctx, ctx.nominal_trace)
-            .iter()
-            .cloned()
-            .fold(1.0, f64::max);
+        let max_a = largest_current_a(ctx).max(1.0);
         vec![Search {
             name: "play_a",
             unit: "A",
@@ -103,10 +100,7 @@ impl Effect for Hysteresis {
         // current the recording draws does not rest on that scale, only on the law's shape
         // (on the independent generator's three stands, whose play is 3 A of about 66 A, the
         // amperes came out 2.6 to 5.8 +- 0.03 to 0.1, the share within a fifth of the truth).
-        let full_a = super::law_current(ctx, ctx.nominal_trace)
-            .iter()
-            .cloned()
-            .fold(0.0, f64::max);
+        let full_a = largest_current_a(ctx);
         let basis = format!(
             "the current as the field calibrates it: its amperes are the nominal motor's, whose \
              scale nobody stated (log bat_a, or state the motor's kv, winding resistance and \
@@ -118,7 +112,7 @@ impl Effect for Hysteresis {
         );
         let mut p: Vec<Param> = p
             .into_iter()
-            .map(|q| Param { sd: None, ..q }.resting_on(&basis))
+            .map(|q| q.without_sd_resting_on(&basis))
             .collect();
         if full_a > 0.0 {
             let share = Param::new(
@@ -131,4 +125,13 @@ impl Effect for Hysteresis {
         }
         p
     }
+}
+
+/// The largest current the recording draws, as the play sees it ([`super::law_current`] of the
+/// nominal replay), A: what the play's search range and its share are taken of.
+fn largest_current_a(ctx: &Context) -> f64 {
+    super::law_current(ctx, ctx.nominal_trace)
+        .iter()
+        .cloned()
+        .fold(0.0, f64::max)
 }

@@ -203,6 +203,12 @@ impl Param {
         }
     }
 
+    /// This parameter with no sd, resting on `basis`: what the value rests on is something no
+    /// curvature of the fit can give an uncertainty for.
+    pub fn without_sd_resting_on(self, basis: &str) -> Param {
+        Param { sd: None, ..self }.resting_on(basis)
+    }
+
     /// Three parameters `name_x`, `name_y`, `name_z` from per-axis values.
     pub fn axes(name: &str, value: [f64; 3], sd: [f64; 3], unit: &str) -> Vec<Param> {
         ["x", "y", "z"]

@@ -264,7 +264,7 @@ impl Effect for ThermalDrift {
                     per_w
                         .into_iter()
                         .chain(at_largest)
-                        .map(|q| Param { sd: None, ..q }.resting_on(&basis)),
+                        .map(|q| q.without_sd_resting_on(&basis)),
                 );
                 p
             }

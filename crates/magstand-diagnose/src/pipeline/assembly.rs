@@ -220,7 +220,7 @@ fn separate_calibration(
                     ..p
                 });
                 match at_limit {
-                    Some((s, ..)) => Param { sd: None, ..p }.resting_on(&format!(
+                    Some((s, ..)) => p.without_sd_resting_on(&format!(
                         "the edge of its search range, {} to {} {}: the data place it there or \
                          beyond, so it has no sd",
                         s.lo, s.hi, s.unit
@@ -272,7 +272,7 @@ fn undetermined_within(search: Option<&crate::optimize::Search>, p: Param) -> Pa
         s.lo, s.hi, s.unit
     );
     // It replaces any earlier basis: those say what the sd holds.
-    Param { sd: None, ..p }.resting_on(&why)
+    p.without_sd_resting_on(&why)
 }
 
 /// The model of `terms` as a model file that compensates recordings of the same stand.
