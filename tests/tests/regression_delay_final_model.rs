@@ -7,8 +7,9 @@
 //! augmented simulation left a held-out RMSE of 0.64, 0.35, 1.02 µT at a delay of 0.272 s,
 //! where the same recording diagnosed with the stand stated leaves 0.23, 0.20, 0.28 µT; the
 //! model file `compensate` uses was three times worse than the data allow. The final model is
-//! now refitted under its own weights, each delay or dead zone over its whole range
-//! (`polish_beside_delay`), and kept where it fits better: 0.285 s and 0.23, 0.20, 0.28 µT.
+//! now refitted under its own weights, the delay over its whole range and then the lead, and
+//! where that fits significantly better every term near where it now is
+//! (`polish_beside_delay`): 0.284 s and 0.23, 0.20, 0.28 µT.
 //!
 //! Kept only where the held-out error falls too: on the hexacopter with the commands logged
 //! 0.15 s late (seed 1), the weights of the final model (which misfits the first sample after
