@@ -172,6 +172,14 @@ pub(crate) fn refine_under_own_weights(
         return false;
     }
     let start = point(ctx, terms);
+    pass_near(ctx, terms, weights);
+    valley_steps(ctx, terms, weights);
+    point(ctx, terms) != start
+}
+
+/// One coordinate pass within a grid step of where the terms are ([`search_near`], each
+/// with the others held), then the command lead near where it is.
+fn pass_near(ctx: &mut Context, terms: &mut [Term], weights: &Weights) {
     for k in 0..terms.len() {
         let searches = terms[k].effect.search(ctx);
         if searches.is_empty() {
@@ -184,8 +192,6 @@ pub(crate) fn refine_under_own_weights(
         }
     }
     ctx.command_lead = calibrate_timing_from(ctx, terms, weights, Some(ctx.command_lead));
-    valley_steps(ctx, terms, weights);
-    point(ctx, terms) != start
 }
 
 /// The fall of the chi-square under `weights` that a refinement near where the terms'
@@ -441,18 +447,7 @@ pub(crate) fn polish_beside_delay(
         return false;
     }
     // Every term near where it now is, as after an acceptance.
-    for k in 0..terms.len() {
-        let searches = terms[k].effect.search(ctx);
-        if searches.is_empty() {
-            continue;
-        }
-        let chi2 = |theta: &[f64]| chi2_with_term_at(ctx, terms, k, theta, weights);
-        if let Some(opt) = search_near(&terms[k], &searches, chi2) {
-            terms[k].theta = opt.theta;
-            terms[k].theta_sd = opt.sd;
-        }
-    }
-    ctx.command_lead = calibrate_timing_from(ctx, terms, weights, Some(ctx.command_lead));
+    pass_near(ctx, terms, weights);
     let after = chi2_of(ctx, &as_refs(terms), ctx.command_lead, weights);
     let kept = after.is_some_and(|after| keep(before - after, ctx, terms));
     if !kept {
