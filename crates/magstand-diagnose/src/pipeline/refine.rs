@@ -623,6 +623,47 @@ mod tests {
         assert_eq!(along_the_valley(&[0.5, 1.0], &[], &[0.3]), vec![0.5, 1.0]);
     }
 
+    /// The delay's final refit asks `keep` once after the delay's whole range and the lead,
+    /// and, where told no, leaves the terms and the lead as they were, bit for bit; where
+    /// told yes both times, it searches every term near where it is and keeps what it found.
+    /// Without a delay in the model it does nothing and asks nothing.
+    #[test]
+    fn a_delays_final_refit_keeps_only_what_keep_allows() {
+        let stand = TestStand::drifting_stair(2000);
+        let w = Weights(vec![[1.0; 3]; 2000]);
+        let run = |names: &[&str], answer: bool| {
+            let mut ctx = stand.context();
+            let mut terms: Vec<Term> = names.iter().map(|n| Term::mid_range(&ctx, n)).collect();
+            let start = point(&ctx, &terms);
+            let falls = Cell::new(Vec::new());
+            let kept = polish_beside_delay(&mut ctx, &mut terms, &w, |fall, _, _| {
+                let mut f = falls.take();
+                f.push(fall);
+                falls.set(f);
+                answer
+            });
+            (kept, start, point(&ctx, &terms), falls.take())
+        };
+        let (kept, start, end, asked) = run(&["time_offset", "thermal_drift"], false);
+        assert!(!kept && asked.len() == 1, "kept {kept}, asked {asked:?}");
+        assert_eq!(
+            start.iter().map(|v| v.to_bits()).collect::<Vec<_>>(),
+            end.iter().map(|v| v.to_bits()).collect::<Vec<_>>(),
+            "told no, it moved {start:?} to {end:?}"
+        );
+        let (kept, start, end, asked) = run(&["time_offset", "thermal_drift"], true);
+        assert!(kept && asked.len() == 2, "kept {kept}, asked {asked:?}");
+        assert!(
+            start != end && asked.iter().all(|f| *f >= 0.0),
+            "told yes, {start:?} -> {end:?} with chi-square falls {asked:?}"
+        );
+        let (kept, start, end, asked) = run(&["thermal_drift"], true);
+        assert!(
+            !kept && asked.is_empty() && start == end,
+            "without a delay: kept {kept}, asked {asked:?}, {start:?} -> {end:?}"
+        );
+    }
+
     /// The refinement asks after each search of the newest term whether it is at an edge, and
     /// stops at the first yes: the searches after it would be replays spent on a term that is
     /// refused. Asked nothing of the older terms; where the answer is no, the lead and the
