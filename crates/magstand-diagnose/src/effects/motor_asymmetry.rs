@@ -388,9 +388,8 @@ impl Effect for MotorAsymmetry {
                 };
                 gains
                     .into_iter()
-                    .map(|q| Param { sd: None, ..q })
-                    .chain(at_largest)
-                    .map(|q| q.resting_on(&basis))
+                    .map(|q| q.without_sd_resting_on(&basis))
+                    .chain(at_largest.into_iter().map(|q| q.resting_on(&basis)))
                     .collect()
             })
             .collect()

@@ -1458,10 +1458,11 @@ pub(crate) fn forward_search<'e>(
     // The final model refitted where a delay's optimum under its own weights may lie beyond
     // a cliff the searches near it stepped over; kept where it fits significantly better (as
     // a likelihood ratio over every term's parameters and the lead, all of which it may
-    // move), leaves no term at an edge, and lowers the held-out error (on the independent generator's hexacopter with
-    // the commands logged 0.15 s late, seed 1, the weights of a model that misfits a step's
-    // first sample favoured a lead and spin-up that fitted the identification rows better
-    // and the held-out ones worse: 0.45, 0.73, 0.61 -> 0.57, 0.95, 0.79 µT).
+    // move), leaves no term at an edge, and lowers the held-out error (on the independent
+    // generator's hexacopter with the commands logged 0.15 s late, seed 1, the weights of a
+    // model that misfits a step's first sample favoured a lead and spin-up that fitted the
+    // identification rows better and the held-out ones worse: 0.45, 0.73, 0.61 -> 0.57,
+    // 0.95, 0.79 µT).
     if let Some(model) = latest.take() {
         let (held, lead) = (terms.clone(), ctx.command_lead);
         let keep = |fall: f64, ctx: &Context, terms: &[Term]| {
