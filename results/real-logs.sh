@@ -23,6 +23,7 @@ for f in "$D"/*.bin "$D"/*.ulg; do
       /^  firmware: / { fw = substr($0, 13) }
       /^  magnetometer: / { mag = substr($0, 17); sub(/;.*/, "", mag) }
       /motor count from / { src = $0; sub(/.*motor count from /, "", src); motors = motors " (from " src ")" }
+      /^  its compensation parameters: / { slot = $0; sub(/.*`mag_slot` = /, "", slot); sub(/;.*/, "", slot); mag = mag ", parameters `" slot "`" }
       END { printf "%s | %s, %s | %s | %s", fw ? fw : "not named", rows, rate, motors, mag }' "$T/i.txt")
     other=$( { grep -E '^DAMAGED|0 throughout|^  gap in' "$T/i.txt" || true; } | sed 's/^  //; s/^DAMAGED FILE: /damaged: /; s/|/\//g' | cut -c1-240 | paste -sd '\t' - | sed 's/\t/; /g')
     ranges=$(awk -F, '
@@ -83,7 +84,9 @@ row() { # name file kind input [import args...]
       fi
       cells+=("$(awk '/^ +[xyz] /{printf "%s%.2f", (n++ ? " / " : ""), $4}' "$T/fit.txt")")
       earth=$(sed -n 's/.*: N \([-0-9.]*\) E \([-0-9.]*\) D \([-0-9.]*\) uT.*/\1, \2, \3/p' "$T/fit.txt")
-      delay=$(sed -n 's/.*magnetometer samples \([0-9.]*\) s behind the attitude and \([0-9.]*\) s behind.*/\1, \2/p' "$T/fit.txt")
+      # A magnetometer ahead of the input (the input logged late) is a negative delay.
+      delay=$(sed -n -e 's/.*magnetometer samples \([0-9.]*\) s behind the attitude and \([0-9.]*\) s behind.*/\1, \2/p' \
+        -e 's/.*magnetometer samples \([0-9.]*\) s behind the attitude and \([0-9.]*\) s ahead of.*/\1, -\2/p' "$T/fit.txt")
     else
       cells+=("fit failed: $(tail -1 "$T/fit.txt" | sed "s#$T/##g; s#^error: ##" | cut -c1-110)")
     fi

@@ -7,6 +7,7 @@ use anyhow::{Result, bail};
 use clap::{Args, ValueEnum};
 
 use crate::files;
+use magstand_core::magnetometer_slot::MagnetometerSlot;
 use magstand_core::recording_csv;
 use magstand_ident::InputKind;
 use magstand_logs::export::json::export_json;
@@ -115,6 +116,7 @@ fn export_physics(a: &ExportArgs, model: &magstand_diagnose::AugmentedModel) -> 
     };
     let rec = recording_csv::read(path)?;
     let origin = path.display().to_string();
+    let instance = instance(a, fitted_on(a, None, Some((&rec, path)))?)?;
     let dist = model.dist_column(&rec, &origin)?;
     let reference = model.reference_ut();
     let input = match a.input {
@@ -126,9 +128,9 @@ fn export_physics(a: &ExportArgs, model: &magstand_diagnose::AugmentedModel) -> 
             let line = line_over_prediction(&dist, reference, &rec, &origin, input)?;
             eprint!("{}", describe(&line));
             if a.target == Target::Px4 {
-                px4_params(&line, a.instance.unwrap_or(0))
+                px4_params(&line, instance)
             } else {
-                ardupilot_params(&line, a.instance.unwrap_or(1))
+                ardupilot_params(&line, instance)
             }
         }
         _ => {
@@ -161,6 +163,89 @@ fn check_settings(a: &ExportArgs) -> Result<()> {
     }
 }
 
+/// The magnetometer the model was fitted on, as its file (`fit` writes the recording's
+/// `mag_slot` there) or the recording the parameters are fitted over says: the two must agree.
+fn fitted_on(
+    a: &ExportArgs,
+    in_model: Option<MagnetometerSlot>,
+    recording: Option<(&magstand_core::Recording, &std::path::Path)>,
+) -> Result<Option<MagnetometerSlot>> {
+    let in_recording = match recording {
+        Some((rec, path)) => MagnetometerSlot::of_recording(rec, path)?,
+        None => None,
+    };
+    match (in_model, in_recording) {
+        (Some(m), Some(r)) if m != r => bail!(
+            "{} was fitted on {} (`magnetometer` = {m}), but {} holds {} (`{}` = {r}): the parameters would be fitted over another sensor's rows",
+            a.model.display(),
+            m.describe(),
+            a.recording
+                .as_deref()
+                .map(|p| p.display().to_string())
+                .unwrap_or_default(),
+            r.describe(),
+            magstand_core::magnetometer_slot::COLUMN
+        ),
+        (m, r) => Ok(m.or(r)),
+    }
+}
+
+/// The instance whose parameters are written: the magnetometer the model was fitted on
+/// (`fitted_on`), which `--instance` may only repeat; where nothing says which that was, the
+/// one `--instance` gives, or the first. A compensation written into another sensor's
+/// parameters corrects that sensor by a field it does not see: the worst output an export can
+/// give. A model fitted on the other firmware's log says nothing of this one's numbering, so
+/// `--instance` must say it.
+fn instance(a: &ExportArgs, fitted_on: Option<MagnetometerSlot>) -> Result<usize> {
+    let (this_firmware, first) = match a.target {
+        Target::Px4 => ("PX4", 0),
+        _ => ("ArduPilot", 1),
+    };
+    let own = |slot: MagnetometerSlot| match (a.target, slot) {
+        (Target::Px4, MagnetometerSlot::Px4CalMag(n)) => Some(n as usize),
+        (Target::Ardupilot | Target::ArdupilotPerMotor, MagnetometerSlot::ArduPilotCompass(n)) => {
+            Some(n as usize)
+        }
+        _ => None,
+    };
+    let name = |i: usize| match a.target {
+        Target::Px4 => format!("CAL_MAG{i}"),
+        _ => format!("compass {i}"),
+    };
+    let chosen = match (fitted_on, a.instance) {
+        (Some(slot), given) => match (own(slot), given) {
+            (Some(n), Some(i)) if i != n => bail!(
+                "--instance {i}: {} was fitted on the magnetometer of {} (`mag_slot` = {slot} in the recording it was fitted on); its compensation in {}'s parameters would correct another sensor by a field it does not see. Drop --instance",
+                a.model.display(),
+                slot.describe(),
+                name(i)
+            ),
+            (Some(n), _) => n,
+            (None, Some(i)) => i,
+            (None, None) => bail!(
+                "{} was fitted on {} (`mag_slot` = {slot}): which of {this_firmware}'s magnetometers that sensor is, the other firmware's log does not say. Give --instance",
+                a.model.display(),
+                slot.describe(),
+            ),
+        },
+        (None, Some(i)) => i,
+        (None, None) => {
+            eprintln!(
+                "parameters for {}: the model does not say which magnetometer it was fitted on (a recording `magstand import` wrote says it in `mag_slot`); --instance picks another",
+                name(first)
+            );
+            first
+        }
+    };
+    if a.target == Target::ArdupilotPerMotor && chosen != 1 {
+        bail!(
+            "ArduPilot applies per-motor compensation to the first compass only, and {} was fitted on compass {chosen}",
+            a.model.display()
+        );
+    }
+    Ok(chosen)
+}
+
 /// Runs `magstand export`.
 pub fn run(a: ExportArgs) -> Result<()> {
     check_settings(&a)?;
@@ -181,6 +266,16 @@ pub fn run(a: ExportArgs) -> Result<()> {
         .as_ref()
         .map(|p| p.display().to_string())
         .unwrap_or_default();
+    let fitted_on = fitted_on(
+        &a,
+        model.magnetometer,
+        recording.as_ref().zip(a.recording.as_deref()),
+    )?;
+    // Resolved before any line is fitted: a refusal costs nothing.
+    let instance = match a.target {
+        Target::Px4 | Target::Ardupilot | Target::ArdupilotPerMotor => instance(&a, fitted_on)?,
+        _ => 0,
+    };
     let span = match &recording {
         Some(r) => Span::Rows {
             recording: r,
@@ -220,12 +315,12 @@ pub fn run(a: ExportArgs) -> Result<()> {
         Target::Px4 => {
             let line = linear_approximation(&model, input, span)?;
             eprint!("{}", describe(&line));
-            px4_params(&line, a.instance.unwrap_or(0))
+            px4_params(&line, instance)
         }
         Target::Ardupilot => {
             let line = linear_approximation(&model, input, span)?;
             eprint!("{}", describe(&line));
-            ardupilot_params(&line, a.instance.unwrap_or(1))
+            ardupilot_params(&line, instance)
         }
         Target::ArdupilotPerMotor => {
             let Some(rec) = &recording else {

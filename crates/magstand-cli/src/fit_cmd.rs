@@ -6,6 +6,7 @@ use clap::{Args, ValueEnum};
 
 use crate::files;
 use crate::simulate_cmd::load_scenario;
+use magstand_core::magnetometer_slot::MagnetometerSlot;
 use magstand_core::{AXES, recording_csv};
 use magstand_ident::{Estimation, Family, FitConfig, FitSetting, InputKind, Model, Structure};
 
@@ -497,6 +498,7 @@ pub fn run(a: FitArgs) -> Result<()> {
     files::refuse_overwriting_inputs(&inputs, &[&a.model_out])?;
     let mut rec = recording_csv::read(&a.recording)?;
     let origin = a.recording.display().to_string();
+    let slot = MagnetometerSlot::of_recording(&rec, &a.recording)?;
     // Printed after the model is written: a reader that closes stdout early must not cost it.
     let mut earth_summary = None;
     let mut flight_reference = None;
@@ -549,6 +551,10 @@ pub fn run(a: FitArgs) -> Result<()> {
                 }
             }
         }
+    };
+    let model = Model {
+        magnetometer: slot,
+        ..model
     };
     model.save(&a.model_out).with_context(save_err)?;
     if let Some(s) = earth_summary {

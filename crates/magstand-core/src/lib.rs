@@ -35,6 +35,7 @@ pub mod fixed_decimal;
 pub mod held_out;
 pub mod input_file;
 pub mod interpolation;
+pub mod magnetometer_slot;
 pub mod rbf;
 mod recording;
 pub mod recording_csv;

@@ -124,6 +124,11 @@ pub struct Model {
     /// When the family was chosen automatically: what was tried and why this one won.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub choice: Option<crate::family_choice::FamilyChoice>,
+    /// The firmware's parameter set of the magnetometer it was fitted on (the recording's
+    /// `mag_slot`, which `import` writes), so that `export` writes that one's parameters.
+    /// Absent where the recording did not say (a test stand's).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub magnetometer: Option<magstand_core::magnetometer_slot::MagnetometerSlot>,
 }
 
 /// The normalized input range a model was identified on.
@@ -266,6 +271,7 @@ impl Model {
             summary: None,
             identified: None,
             choice: None,
+            magnetometer: None,
         }
     }
 

@@ -13,6 +13,7 @@
 //! Copter 3.4 in float volts and amperes, and a fixed factor would be wrong for one of them.
 //! * `ATT` roll, pitch, yaw in degrees; `EV` 10/11 armed/disarmed, 28/18 took off/landed;
 //!   `GPS` position and GPS week time for the Earth-field model.
+use magstand_core::magnetometer_slot::MagnetometerSlot;
 use magstand_core::{Quat, Vec3};
 
 use crate::LogsError;
@@ -155,6 +156,7 @@ fn magnetometer(
             String::new()
         }
     ));
+    out.mag_slot = compass_slot(log, inst, &mut out.notes);
     let s = log.series("MAG", inst).expect("listed instance");
     let axes: Vec<&[f64]> = ["MagX", "MagY", "MagZ"]
         .iter()
@@ -178,6 +180,31 @@ fn magnetometer(
         (s.t_s[r], v.iter().all(|x| x.is_finite()).then_some(v))
     }));
     Ok(())
+}
+
+/// The compass whose `COMPASS_MOT*` parameters compensate MAG instance `inst`. The log's
+/// instances follow the compasses' priorities (`COMPASS_PRIOn_ID`, from ArduPilot 4.0), the
+/// parameters the order in which the compasses were first found (`COMPASS_DEV_ID*`): where
+/// the log has both, the instance's device id names its parameters. Older firmware has no
+/// priorities, and instance n is compass n + 1. None, with a note, where the priority's device
+/// has no parameters in the log.
+fn compass_slot(log: &LogContents, inst: u8, notes: &mut Vec<String>) -> Option<MagnetometerSlot> {
+    let suffix = |n: u8| if n == 1 { String::new() } else { n.to_string() };
+    let Some(id) = log
+        .param(&format!("COMPASS_PRIO{}_ID", inst + 1))
+        .filter(|id| *id != 0.0)
+    else {
+        return Some(MagnetometerSlot::ArduPilotCompass(inst + 1));
+    };
+    let compass =
+        (1..=3u8).find(|&n| log.param(&format!("COMPASS_DEV_ID{}", suffix(n))) == Some(id));
+    if compass.is_none() {
+        notes.push(format!(
+            "warning: compass instance {inst} is device {id} (COMPASS_PRIO{}_ID), which no COMPASS_DEV_ID of the log names: `export` needs --instance for its parameters",
+            inst + 1
+        ));
+    }
+    compass.map(MagnetometerSlot::ArduPilotCompass)
 }
 
 fn motors(
@@ -404,4 +431,44 @@ fn position(log: &LogContents) -> Option<Position> {
         alt_m: s.field("Alt").map_or(0.0, |a| a[r]),
         year,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// From ArduPilot 4.0 the MAG instances follow the priorities and the `COMPASS_MOT*`
+    /// parameters the detection order: the instance's device id names its compass. Without
+    /// priorities instance n is compass n + 1, and a priority's device without parameters has
+    /// no compass (and a warning).
+    #[test]
+    fn a_mag_instance_is_matched_to_its_compass_through_the_priorities() {
+        let mut log = LogContents::new("a.bin".into(), crate::contents::LogFormat::DataFlash);
+        let mut notes = Vec::new();
+        assert_eq!(
+            compass_slot(&log, 1, &mut notes),
+            Some(MagnetometerSlot::ArduPilotCompass(2))
+        );
+        // Priority 1 is the device found second, priority 2 the one found first.
+        for (name, value) in [
+            ("COMPASS_DEV_ID", 97539.0),
+            ("COMPASS_DEV_ID2", 131874.0),
+            ("COMPASS_PRIO1_ID", 131874.0),
+            ("COMPASS_PRIO2_ID", 97539.0),
+            ("COMPASS_PRIO3_ID", 590114.0),
+        ] {
+            log.params.insert(name.into(), value);
+        }
+        assert_eq!(
+            compass_slot(&log, 0, &mut notes),
+            Some(MagnetometerSlot::ArduPilotCompass(2))
+        );
+        assert_eq!(
+            compass_slot(&log, 1, &mut notes),
+            Some(MagnetometerSlot::ArduPilotCompass(1))
+        );
+        assert!(notes.is_empty(), "{notes:?}");
+        assert_eq!(compass_slot(&log, 2, &mut notes), None);
+        assert!(notes.len() == 1 && notes[0].contains("590114"), "{notes:?}");
+    }
 }

@@ -256,6 +256,13 @@ pub fn import(
         segments: Vec::new(),
         position: streams.position,
     };
+    if let Some(slot) = streams.mag_slot {
+        report.notes.push(format!(
+            "its compensation parameters: {} (column `{}` = {slot}; `export` writes those)",
+            slot.describe(),
+            magstand_core::magnetometer_slot::COLUMN
+        ));
+    }
     let rec = align(log, &streams, opts, &mut report)?;
     Ok((rec, report))
 }
@@ -513,6 +520,7 @@ fn align(
         "segment".into(),
         kinds.iter().map(|k| k.name().to_string()).collect(),
     ));
+    magstand_core::magnetometer_slot::MagnetometerSlot::write_into(st.mag_slot, &mut rec);
     rec.check()?;
     Ok(rec)
 }

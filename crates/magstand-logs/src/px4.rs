@@ -10,6 +10,7 @@
 //!   `UAVCAN_ENABLE` >= 2) are raw 0..8191.
 //! * `battery_status[0]`, `vehicle_attitude`, `actuator_armed` (or `vehicle_status`),
 //!   `vehicle_land_detected`, and GPS position and UTC time for the Earth-field model.
+use magstand_core::magnetometer_slot::MagnetometerSlot;
 use magstand_core::{Quat, Vec3};
 
 use crate::LogsError;
@@ -153,6 +154,8 @@ fn magnetometer(
             }
         },
     };
+    // Its compensation belongs to the calibration slot whose id is the sensor's.
+    out.mag_slot = slot(inst).map(|k| MagnetometerSlot::Px4CalMag(k as u8));
     let s = log.series("sensor_mag", inst).expect("listed instance");
     let axes: Vec<&[f64]> = ["x", "y", "z"]
         .iter()

@@ -61,6 +61,8 @@ pub struct VehicleStreams {
     pub mag_ut: Stream<Vec3>,
     /// The magnetometer's temperature, °C, when it reports one.
     pub mag_temp_c: Option<Stream<f64>>,
+    /// The firmware's parameter set of the chosen magnetometer, where the log tells it.
+    pub mag_slot: Option<magstand_core::magnetometer_slot::MagnetometerSlot>,
     /// Motor commands mapped to 0..1, one entry per motor.
     pub motors: Stream<Vec<f64>>,
     /// Battery voltage, V.
