@@ -5,6 +5,7 @@ use anyhow::Result;
 use clap::Args;
 
 use crate::files;
+use magstand_core::magnetometer_slot::MagnetometerSlot;
 use magstand_core::{Recording, Vec3, recording_csv};
 use magstand_diagnose::model_choice::DisturbanceModel;
 use magstand_ident::metrics::{Evaluation, against_truth};
@@ -77,6 +78,7 @@ fn run_adaptive(a: &CompensateArgs, model: &Model, origin: &str) -> Result<()> {
     .check()
     .map_err(|e| anyhow::anyhow!(crate::fit_cmd::in_flag_terms(&e.to_string())))?;
     let rec = recording_csv::read(&a.recording)?;
+    MagnetometerSlot::agreeing_with(model.magnetometer, &rec, &a.recording)?;
     let adapted = compensate_adaptive(model, &rec, origin, &cfg)?;
     files::ensure_parent(&a.out)?;
     recording_csv::write(&adapted.recording, &a.out)?;
@@ -154,6 +156,9 @@ pub fn run(a: CompensateArgs) -> Result<()> {
         return run_adaptive(&a, m, &origin);
     }
     let rec = recording_csv::read(&a.recording)?;
+    if let DisturbanceModel::LocalLinear(m) = &model {
+        MagnetometerSlot::agreeing_with(m.magnetometer, &rec, &a.recording)?;
+    }
     let out = model.compensate(&rec, &origin)?;
     files::ensure_parent(&a.out)?;
     recording_csv::write(&out, &a.out)?;

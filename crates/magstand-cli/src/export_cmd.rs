@@ -116,7 +116,7 @@ fn export_physics(a: &ExportArgs, model: &magstand_diagnose::AugmentedModel) -> 
     };
     let rec = recording_csv::read(path)?;
     let origin = path.display().to_string();
-    let instance = instance(a, fitted_on(a, None, Some((&rec, path)))?)?;
+    let instance = instance(a, MagnetometerSlot::agreeing_with(None, &rec, path)?)?;
     let dist = model.dist_column(&rec, &origin)?;
     let reference = model.reference_ut();
     let input = match a.input {
@@ -160,33 +160,6 @@ fn check_settings(a: &ExportArgs) -> Result<()> {
             "ArduPilot applies per-motor compensation to the first compass only; drop --instance or give 1"
         ),
         _ => Ok(()),
-    }
-}
-
-/// The magnetometer the model was fitted on, as its file (`fit` writes the recording's
-/// `mag_slot` there) or the recording the parameters are fitted over says: the two must agree.
-fn fitted_on(
-    a: &ExportArgs,
-    in_model: Option<MagnetometerSlot>,
-    recording: Option<(&magstand_core::Recording, &std::path::Path)>,
-) -> Result<Option<MagnetometerSlot>> {
-    let in_recording = match recording {
-        Some((rec, path)) => MagnetometerSlot::of_recording(rec, path)?,
-        None => None,
-    };
-    match (in_model, in_recording) {
-        (Some(m), Some(r)) if m != r => bail!(
-            "{} was fitted on {} (`magnetometer` = {m}), but {} holds {} (`{}` = {r}): the parameters would be fitted over another sensor's rows",
-            a.model.display(),
-            m.describe(),
-            a.recording
-                .as_deref()
-                .map(|p| p.display().to_string())
-                .unwrap_or_default(),
-            r.describe(),
-            magstand_core::magnetometer_slot::COLUMN
-        ),
-        (m, r) => Ok(m.or(r)),
     }
 }
 
@@ -266,11 +239,10 @@ pub fn run(a: ExportArgs) -> Result<()> {
         .as_ref()
         .map(|p| p.display().to_string())
         .unwrap_or_default();
-    let fitted_on = fitted_on(
-        &a,
-        model.magnetometer,
-        recording.as_ref().zip(a.recording.as_deref()),
-    )?;
+    let fitted_on = match (&recording, &a.recording) {
+        (Some(rec), Some(path)) => MagnetometerSlot::agreeing_with(model.magnetometer, rec, path)?,
+        _ => model.magnetometer,
+    };
     // Resolved before any line is fitted: a refusal costs nothing.
     let instance = match a.target {
         Target::Px4 | Target::Ardupilot | Target::ArdupilotPerMotor => instance(&a, fitted_on)?,

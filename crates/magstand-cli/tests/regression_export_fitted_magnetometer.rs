@@ -6,7 +6,7 @@
 //! writes the magnetometer's parameter set in the recording's `mag_slot` column, `fit` keeps
 //! it in the model file, and `export` writes that set's parameters: `--instance` may only
 //! repeat it, the other firmware's numbering needs `--instance`, and a recording of another
-//! sensor is refused.
+//! sensor is refused (by `compensate` too).
 mod common;
 use common::magstand;
 
@@ -95,7 +95,7 @@ fn an_export_writes_the_parameters_of_the_magnetometer_the_model_was_fitted_on()
         ),
         (
             &["--to", "ardupilot", "--recording", &other][..],
-            "ArduPilot's compass 3",
+            "\"ardupilot:3\" is not the magnetometer the model was fitted on",
         ),
     ] {
         let mut args = extra.to_vec();
@@ -112,6 +112,25 @@ fn an_export_writes_the_parameters_of_the_magnetometer_the_model_was_fitted_on()
             "{extra:?} wrote {out}"
         );
     }
+    // Compensating another sensor's recording with the model is refused too.
+    let r = magstand(&[
+        "compensate",
+        "--model",
+        &model,
+        "--recording",
+        &other,
+        "--out",
+        &out,
+    ]);
+    assert!(
+        !r.ok && r.stderr.contains("mag_slot") && r.stderr.contains("another sensor"),
+        "{}",
+        r.stderr
+    );
+    assert!(
+        !std::path::Path::new(&out).exists(),
+        "compensate wrote {out}"
+    );
     // Told which PX4 slot that sensor is, the PX4 parameters are that slot's.
     let r = export(&["--to", "px4", "--instance", "1"]);
     assert!(r.ok, "{}", r.stderr);

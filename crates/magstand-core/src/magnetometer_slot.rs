@@ -61,6 +61,14 @@ impl MagnetometerSlot {
     /// absent or every cell empty. Cells must all hold the same slot: a recording joined from
     /// two magnetometers has no one slot.
     pub fn of_recording(rec: &Recording, path: &Path) -> Result<Option<Self>, CoreError> {
+        Ok(Self::first_of_recording(rec, path)?.map(|(_, s)| s))
+    }
+
+    /// [`MagnetometerSlot::of_recording`], with the first row (from 0) that holds it.
+    fn first_of_recording(
+        rec: &Recording,
+        path: &Path,
+    ) -> Result<Option<(usize, Self)>, CoreError> {
         let Some((_, cells)) = rec.extra.iter().find(|(name, _)| name == COLUMN) else {
             return Ok(None);
         };
@@ -89,7 +97,31 @@ impl MagnetometerSlot {
                 None => found = Some((row, slot)),
             }
         }
-        Ok(found.map(|(_, s)| s))
+        Ok(found)
+    }
+
+    /// The magnetometer of a model fitted on `fitted_on` and applied to `rec` (read from
+    /// `path`): the model's, or where it does not say, the recording's. A recording of another
+    /// sensor is refused at its first row: the model's compensation would correct that sensor by
+    /// a field it does not see.
+    pub fn agreeing_with(
+        fitted_on: Option<Self>,
+        rec: &Recording,
+        path: &Path,
+    ) -> Result<Option<Self>, CoreError> {
+        match (fitted_on, Self::first_of_recording(rec, path)?) {
+            (Some(m), Some((row, r))) if m != r => Err(CoreError::BadCell {
+                path: path.to_path_buf(),
+                row: row + 1,
+                column: COLUMN.into(),
+                found: r.to_string(),
+                expected: format!(
+                    "the magnetometer the model was fitted on, {m} ({}): this recording is of another sensor",
+                    m.describe()
+                ),
+            }),
+            (m, r) => Ok(m.or(r.map(|(_, s)| s))),
+        }
     }
 
     /// `rec` with `slot` written in every row of its [`COLUMN`] (replacing any), or the column
@@ -194,7 +226,24 @@ mod tests {
             e.contains("row 3") && e.contains("mag_slot") && e.contains("ardupilot:2"),
             "{e}"
         );
+        rec.extra[0].1[2] = "ardupilot:2".into();
+        let model = Some(MagnetometerSlot::ArduPilotCompass(3));
+        let e = MagnetometerSlot::agreeing_with(model, &rec, path)
+            .expect_err("another sensor")
+            .to_string();
+        assert!(
+            e.contains("row 1") && e.contains("ardupilot:3") && e.contains("another sensor"),
+            "{e}"
+        );
+        assert_eq!(
+            MagnetometerSlot::agreeing_with(None, &rec, path).ok(),
+            Some(Some(MagnetometerSlot::ArduPilotCompass(2)))
+        );
         MagnetometerSlot::write_into(None, &mut rec);
         assert!(rec.extra.is_empty(), "{:?}", rec.extra);
+        assert_eq!(
+            MagnetometerSlot::agreeing_with(model, &rec, path).ok(),
+            Some(model)
+        );
     }
 }
