@@ -112,6 +112,13 @@ fn an_export_writes_the_parameters_of_the_magnetometer_the_model_was_fitted_on()
             "{extra:?} wrote {out}"
         );
     }
+    // The JSON document for other tools names the sensor its lines belong to.
+    let r = export(&["--to", "json"]);
+    assert!(
+        r.ok && r.stdout.contains("\"magnetometer\": \"ardupilot:2\""),
+        "{}",
+        r.stderr
+    );
     // Compensating another sensor's recording with the model is refused too.
     let r = magstand(&[
         "compensate",

@@ -7,7 +7,11 @@
 //! {
 //!   "format": "magstand-export", "version": 1, "generator": "magstand 0.1.0",
 //!   "model": {"method": "...", "input": "throttle"|"motors"|"current", "input_unit": "1"|"A",
-//!             "reference_ut": [x, y, z]},
+//!             "reference_ut": [x, y, z],
+//!             "magnetometer": "px4:N"|"ardupilot:N"},   // absent where the model does not
+//!                                                   // say: the sensor whose parameters the
+//!                                                   // lines below are (CAL_MAGn, compass n;
+//!                                                   // the keys are named as compass 1's)
 //!   "table": {"input": [...],                       // 201 raw inputs, 0 .. top of range
 //!             "dist_ut": [[...], [...], [...]],     // disturbance per axis (every motor at
 //!                                                   // the same command for a per-motor model)
@@ -53,6 +57,8 @@ struct ModelInfo<'a> {
     input: &'static str,
     input_unit: &'static str,
     reference_ut: [f64; 3],
+    #[serde(skip_serializing_if = "Option::is_none")]
+    magnetometer: Option<String>,
 }
 
 #[derive(Serialize)]
@@ -116,6 +122,7 @@ pub fn export_json(
                 _ => "1",
             },
             reference_ut: model.reference_ut,
+            magnetometer: model.magnetometer.map(|m| m.to_string()),
         },
         table: Table {
             dist_ut: std::array::from_fn(|a| column(&dist, a)),
