@@ -175,11 +175,81 @@ fn magnetometer(
                 .map(|k| k.unwrap_or(UT_PER_MILLIGAUSS))
         })
         .collect::<Result<_, _>>()?;
+    let applied = applied_motor_compensation(log, s, out.mag_slot, &mut out.notes)?;
     out.mag_ut = Stream::from_pairs((0..s.len()).map(|r| {
-        let v = Vec3::new(axes[0][r] * k[0], axes[1][r] * k[1], axes[2][r] * k[2]);
+        let mut v = Vec3::new(axes[0][r] * k[0], axes[1][r] * k[1], axes[2][r] * k[2]);
+        if let Some((offset, k)) = &applied {
+            v -= Vec3::new(
+                offset[0][r] * k[0],
+                offset[1][r] * k[1],
+                offset[2][r] * k[2],
+            );
+        }
         (s.t_s[r], v.iter().all(|x| x.is_finite()).then_some(v))
     }));
     Ok(())
+}
+
+/// The motor compensation ArduPilot applied to the logged field, per message, and the scale of
+/// its fields to µT: None where it applied none. ArduPilot logs its field after adding the
+/// compensation of `COMPASS_MOTCT` (or the per-motor set) and logs what it added (`MOX`..`MOZ`,
+/// `MOfsX`..`MOfsZ` in older logs). The import takes it back out, so that the recording holds
+/// the whole disturbance: a line fitted to the rest would be exported as the whole of
+/// `COMPASS_MOT*` and replace the vehicle's compensation by the part it left. Firmware before
+/// 4.0 added it before the soft-iron matrix (`COMPASS_DIA*`, `COMPASS_ODI*`, near identity),
+/// so there the removal is exact to that matrix's departure from identity, and the note says
+/// so. Where the log has no such fields but the parameters say a compensation was on, the
+/// recording holds only what it left, and a warning says so.
+#[allow(clippy::type_complexity)]
+fn applied_motor_compensation<'a>(
+    log: &LogContents,
+    s: &'a Series,
+    slot: Option<MagnetometerSlot>,
+    notes: &mut Vec<String>,
+) -> Result<Option<([&'a [f64]; 3], [f64; 3])>, LogsError> {
+    let named = |names: [&'static str; 3]| {
+        let [x, y, z] = names.map(|n| s.field(n));
+        Some(([x?, y?, z?], names))
+    };
+    let found = named(["MOX", "MOY", "MOZ"]).or_else(|| named(["MOfsX", "MOfsY", "MOfsZ"]));
+    let kind = log.param("COMPASS_MOTCT").unwrap_or(0.0);
+    let per_motor = log.param("COMPASS_PMOT_EN").unwrap_or(0.0) != 0.0
+        && slot == Some(MagnetometerSlot::ArduPilotCompass(1));
+    let on = || {
+        format!(
+            "COMPASS_MOTCT {kind}{}",
+            if per_motor { ", COMPASS_PMOT_EN 1" } else { "" }
+        )
+    };
+    let Some((offset, names)) = found else {
+        if kind != 0.0 || per_motor {
+            notes.push(format!(
+                "WARNING: ArduPilot's motor compensation was on ({}) and the log's MAG has no motor offsets to take it back out: part of the disturbance is already removed, by an amount the log does not say, and parameters exported from this recording would replace the vehicle's compensation by what it left",
+                on()
+            ));
+        }
+        return Ok(None);
+    };
+    let mut k = [0.0; 3];
+    for (k, name) in k.iter_mut().zip(names) {
+        *k = field_units::scale(log, "MAG", name, Quantity::MagneticField)?
+            .unwrap_or(UT_PER_MILLIGAUSS);
+    }
+    let largest_ut = offset
+        .iter()
+        .zip(k)
+        .flat_map(|(a, k)| a.iter().map(move |v| (v * k).abs()))
+        .fold(0.0f64, f64::max);
+    if !(largest_ut > 0.0) {
+        return Ok(None);
+    }
+    notes.push(format!(
+        "ArduPilot's motor compensation was applied in flight ({}, up to {largest_ut:.1} uT in {}..{}): taken back out, so the recording holds the whole disturbance and exported parameters replace the vehicle's (firmware before 4.0 applied it before the soft-iron matrix, which the removal takes as identity)",
+        on(),
+        names[0],
+        names[2]
+    ));
+    Ok(Some((offset, k)))
 }
 
 /// The compass whose `COMPASS_MOT*` parameters compensate MAG instance `inst`. The log's
@@ -470,5 +540,66 @@ mod tests {
         assert!(notes.is_empty(), "{notes:?}");
         assert_eq!(compass_slot(&log, 2, &mut notes), None);
         assert!(notes.len() == 1 && notes[0].contains("590114"), "{notes:?}");
+    }
+
+    /// A log of one compass, instance 0, whose MAG holds `fields` over two messages.
+    fn one_compass(fields: &[(&str, [f64; 2])], params: &[(&str, f64)]) -> LogContents {
+        let mut log = LogContents::new("a.bin".into(), crate::contents::LogFormat::DataFlash);
+        let series = Series {
+            t_s: vec![1.0, 1.1],
+            fields: fields
+                .iter()
+                .map(|(n, v)| (n.to_string(), v.to_vec()))
+                .collect(),
+        };
+        log.topics
+            .insert("MAG".into(), [(0u8, series)].into_iter().collect());
+        for (n, v) in params {
+            log.params.insert(n.to_string(), *v);
+        }
+        log
+    }
+
+    /// ArduPilot logs its field with the motor compensation it applied added, and what it
+    /// added beside it: the import takes that back out (the whole disturbance is what a fit
+    /// must see, or an export replaces the vehicle's compensation by what it left). Without
+    /// the offsets in the log, a compensation that was on is a warning.
+    #[test]
+    fn the_motor_compensation_ardupilot_applied_is_taken_back_out() {
+        let field = [
+            ("MagX", [100.0, 300.0]),
+            ("MagY", [0.0, 0.0]),
+            ("MagZ", [-50.0, -50.0]),
+        ];
+        let mut with: Vec<_> = field.to_vec();
+        with.extend([
+            ("MOX", [0.0, 120.0]),
+            ("MOY", [0.0, -40.0]),
+            ("MOZ", [0.0, 0.0]),
+        ]);
+        let log = one_compass(&with, &[("COMPASS_MOTCT", 1.0)]);
+        let mut out = VehicleStreams::default();
+        magnetometer(&log, &ImportOptions::default(), &mut out).expect("imported");
+        // 1 mG = 0.1 uT; the second message had 120 and -40 mG added.
+        let want = [Vec3::new(10.0, 0.0, -5.0), Vec3::new(18.0, 4.0, -5.0)];
+        for (got, want) in out.mag_ut.values.iter().zip(want) {
+            assert!((got - want).norm() < 1e-9, "{got:?} against {want:?}");
+        }
+        assert!(
+            out.notes.iter().any(|n| n.contains("taken back out")),
+            "{:?}",
+            out.notes
+        );
+        let log = one_compass(&field, &[("COMPASS_MOTCT", 2.0)]);
+        let mut out = VehicleStreams::default();
+        magnetometer(&log, &ImportOptions::default(), &mut out).expect("imported");
+        assert!((out.mag_ut.values[1] - Vec3::new(30.0, 0.0, -5.0)).norm() < 1e-9);
+        assert!(
+            out.notes
+                .iter()
+                .any(|n| n.starts_with("WARNING") && n.contains("COMPASS_MOTCT 2")),
+            "{:?}",
+            out.notes
+        );
     }
 }
