@@ -188,7 +188,7 @@ fn instance(a: &ExportArgs, fitted_on: Option<MagnetometerSlot>) -> Result<usize
     let chosen = match (fitted_on, a.instance) {
         (Some(slot), given) => match (own(slot), given) {
             (Some(n), Some(i)) if i != n => bail!(
-                "--instance {i}: {} was fitted on the magnetometer of {} (`mag_slot` = {slot} in the recording it was fitted on); its compensation in {}'s parameters would correct another sensor by a field it does not see. Drop --instance",
+                "--instance {i}: {} was fitted on the magnetometer of {} (`mag_slot` = {slot}); its compensation in {}'s parameters would correct another sensor by a field it does not see. Drop --instance",
                 a.model.display(),
                 slot.describe(),
                 name(i)

@@ -119,10 +119,12 @@ fn magnetometer(
             hint: "enable compass logging (LOG_BITMASK includes COMPASS)".into(),
         });
     }
+    // Whether the compass of instance `i` is external: a parameter of its compass, which
+    // from ArduPilot 4.0 need not be the instance's number (`compass_of_instance`).
     let external = |i: u8| {
-        let name = match i {
-            0 => "COMPASS_EXTERNAL".to_string(),
-            k => format!("COMPASS_EXTERN{}", k + 1),
+        let name = match compass_of_instance(log, i)? {
+            1 => "COMPASS_EXTERNAL".to_string(),
+            n => format!("COMPASS_EXTERN{n}"),
         };
         log.param(&name)
     };
@@ -252,26 +254,41 @@ fn applied_motor_compensation<'a>(
     Ok(Some((offset, k)))
 }
 
-/// The compass whose `COMPASS_MOT*` parameters compensate MAG instance `inst`. The log's
-/// instances follow the compasses' priorities (`COMPASS_PRIOn_ID`, from ArduPilot 4.0), the
-/// parameters the order in which the compasses were first found (`COMPASS_DEV_ID*`): where
-/// the log has both, the instance's device id names its parameters. Older firmware has no
-/// priorities, and instance n is compass n + 1. None, with a note, where the priority's device
-/// has no parameters in the log.
-fn compass_slot(log: &LogContents, inst: u8, notes: &mut Vec<String>) -> Option<MagnetometerSlot> {
+/// The compass (1 to 3) whose parameters (`COMPASS_MOT*`, `COMPASS_EXTERN*`, ...) belong to
+/// MAG instance `inst`. The log's instances follow the compasses' priorities
+/// (`COMPASS_PRIOn_ID`, from ArduPilot 4.0), the parameters the order in which the compasses
+/// were first found (`COMPASS_DEV_ID*`): where the log has both, the instance's device id names
+/// its parameters. Older firmware has no priorities, and instance n is compass n + 1. None
+/// where the priority's device has no parameters in the log, or beyond the third compass.
+fn compass_of_instance(log: &LogContents, inst: u8) -> Option<u8> {
     let suffix = |n: u8| if n == 1 { String::new() } else { n.to_string() };
-    let Some(id) = log
-        .param(&format!("COMPASS_PRIO{}_ID", inst + 1))
+    match priority_device(log, inst) {
+        None => (inst < 3).then_some(inst + 1),
+        Some(id) => {
+            (1..=3u8).find(|&n| log.param(&format!("COMPASS_DEV_ID{}", suffix(n))) == Some(id))
+        }
+    }
+}
+
+/// The device id of MAG instance `inst` by its priority (`COMPASS_PRIOn_ID`), where the log
+/// sets one.
+fn priority_device(log: &LogContents, inst: u8) -> Option<f64> {
+    log.param(&format!("COMPASS_PRIO{}_ID", inst as u16 + 1))
         .filter(|id| *id != 0.0)
-    else {
-        return Some(MagnetometerSlot::ArduPilotCompass(inst + 1));
-    };
-    let compass =
-        (1..=3u8).find(|&n| log.param(&format!("COMPASS_DEV_ID{}", suffix(n))) == Some(id));
+}
+
+/// [`compass_of_instance`] as a magnetometer slot, with a warning where there is none.
+fn compass_slot(log: &LogContents, inst: u8, notes: &mut Vec<String>) -> Option<MagnetometerSlot> {
+    let compass = compass_of_instance(log, inst);
     if compass.is_none() {
         notes.push(format!(
-            "warning: compass instance {inst} is device {id} (COMPASS_PRIO{}_ID), which no COMPASS_DEV_ID of the log names: `export` needs --instance for its parameters",
-            inst + 1
+            "warning: compass instance {inst}{} has no COMPASS_MOT parameters the log names: `export` needs --instance for its parameters",
+            priority_device(log, inst)
+                .map(|id| format!(
+                    " is device {id} (COMPASS_PRIO{}_ID), which no COMPASS_DEV_ID names; it",
+                    inst as u16 + 1
+                ))
+                .unwrap_or_default()
         ));
     }
     compass.map(MagnetometerSlot::ArduPilotCompass)
@@ -519,6 +536,13 @@ mod tests {
             compass_slot(&log, 1, &mut notes),
             Some(MagnetometerSlot::ArduPilotCompass(2))
         );
+        // There are three compasses' parameters: a fourth instance has none.
+        assert_eq!(compass_slot(&log, 3, &mut notes), None);
+        assert!(
+            notes.len() == 1 && notes[0].contains("instance 3"),
+            "{notes:?}"
+        );
+        notes.clear();
         // Priority 1 is the device found second, priority 2 the one found first.
         for (name, value) in [
             ("COMPASS_DEV_ID", 97539.0),
@@ -540,6 +564,41 @@ mod tests {
         assert!(notes.is_empty(), "{notes:?}");
         assert_eq!(compass_slot(&log, 2, &mut notes), None);
         assert!(notes.len() == 1 && notes[0].contains("590114"), "{notes:?}");
+    }
+
+    /// From ArduPilot 4.0 an instance is external by its compass's parameter, not by its own
+    /// number: the default magnetometer is the first instance whose compass is internal.
+    #[test]
+    fn the_default_magnetometer_is_internal_by_its_compass() {
+        let field = [
+            ("MagX", [100.0, 300.0]),
+            ("MagY", [0.0, 0.0]),
+            ("MagZ", [-50.0, -50.0]),
+        ];
+        let mut log = one_compass(
+            &field,
+            &[
+                ("COMPASS_DEV_ID", 11.0),
+                ("COMPASS_DEV_ID2", 22.0),
+                ("COMPASS_PRIO1_ID", 22.0),
+                ("COMPASS_PRIO2_ID", 11.0),
+                ("COMPASS_EXTERNAL", 0.0),
+                ("COMPASS_EXTERN2", 1.0),
+            ],
+        );
+        let second = log.topics["MAG"][&0].clone();
+        log.topics.get_mut("MAG").expect("MAG").insert(1, second);
+        let mut out = VehicleStreams::default();
+        magnetometer(&log, &ImportOptions::default(), &mut out).expect("imported");
+        // Instance 0 is compass 2 (external), instance 1 compass 1 (internal).
+        assert_eq!(out.mag_slot, Some(MagnetometerSlot::ArduPilotCompass(1)));
+        assert!(
+            out.notes
+                .iter()
+                .any(|n| n.contains("compass instance 1 (internal)")),
+            "{:?}",
+            out.notes
+        );
     }
 
     /// A log of one compass, instance 0, whose MAG holds `fields` over two messages.
