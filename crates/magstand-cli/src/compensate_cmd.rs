@@ -156,9 +156,11 @@ pub fn run(a: CompensateArgs) -> Result<()> {
         return run_adaptive(&a, m, &origin);
     }
     let rec = recording_csv::read(&a.recording)?;
-    if let DisturbanceModel::LocalLinear(m) = &model {
-        MagnetometerSlot::agreeing_with(m.magnetometer, &rec, &a.recording)?;
-    }
+    let fitted_on = match &model {
+        DisturbanceModel::LocalLinear(m) => m.magnetometer,
+        DisturbanceModel::Physics(m) => m.magnetometer,
+    };
+    MagnetometerSlot::agreeing_with(fitted_on, &rec, &a.recording)?;
     let out = model.compensate(&rec, &origin)?;
     files::ensure_parent(&a.out)?;
     recording_csv::write(&out, &a.out)?;

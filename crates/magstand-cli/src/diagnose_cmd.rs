@@ -7,6 +7,7 @@ use clap::Args;
 
 use crate::files;
 use crate::simulate_cmd::load_scenario;
+use magstand_core::magnetometer_slot::MagnetometerSlot;
 use magstand_core::recording_csv;
 use magstand_diagnose::{DiagnoseConfig, diagnose_observed, unstated_nominal};
 
@@ -90,7 +91,12 @@ pub fn run(a: DiagnoseArgs) -> Result<()> {
     }
     if let (Some(p), Some(m)) = (&a.model_out, &d.model) {
         files::ensure_parent(p)?;
-        m.save(p)?;
+        let magnetometer = MagnetometerSlot::of_recording(&rec, &a.recording)?;
+        magstand_diagnose::AugmentedModel {
+            magnetometer,
+            ..m.clone()
+        }
+        .save(p)?;
         wrote.push(p.clone());
     }
     if let Some(dir) = &a.report {

@@ -116,7 +116,10 @@ fn export_physics(a: &ExportArgs, model: &magstand_diagnose::AugmentedModel) -> 
     };
     let rec = recording_csv::read(path)?;
     let origin = path.display().to_string();
-    let instance = instance(a, MagnetometerSlot::agreeing_with(None, &rec, path)?)?;
+    let instance = instance(
+        a,
+        MagnetometerSlot::agreeing_with(model.magnetometer, &rec, path)?,
+    )?;
     let dist = model.dist_column(&rec, &origin)?;
     let reference = model.reference_ut();
     let input = match a.input {

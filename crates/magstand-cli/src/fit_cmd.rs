@@ -516,7 +516,12 @@ pub fn run(a: FitArgs) -> Result<()> {
         (Plan::Physics, Some(nominal)) => {
             let split = magstand_diagnose::model_choice::identification_split(&rec).check()?;
             let p = magstand_diagnose::model_choice::fit_physics(&rec, &origin, &nominal, &split)?;
-            p.model.save(&a.model_out).with_context(save_err)?;
+            magstand_diagnose::AugmentedModel {
+                magnetometer: slot,
+                ..p.model.clone()
+            }
+            .save(&a.model_out)
+            .with_context(save_err)?;
             if let Some(s) = earth_summary {
                 println!("{s}");
             }
@@ -537,7 +542,12 @@ pub fn run(a: FitArgs) -> Result<()> {
             )?;
             match chosen {
                 magstand_diagnose::model_choice::DisturbanceModel::Physics(m) => {
-                    m.save(&a.model_out).with_context(save_err)?;
+                    magstand_diagnose::AugmentedModel {
+                        magnetometer: slot,
+                        ..*m
+                    }
+                    .save(&a.model_out)
+                    .with_context(save_err)?;
                     if let Some(s) = earth_summary {
                         println!("{s}");
                     }

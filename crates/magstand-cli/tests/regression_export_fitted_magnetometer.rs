@@ -138,6 +138,25 @@ fn an_export_writes_the_parameters_of_the_magnetometer_the_model_was_fitted_on()
         !std::path::Path::new(&out).exists(),
         "compensate wrote {out}"
     );
+    // A diagnosis's model file keeps the sensor too.
+    let physics = p("physics.json");
+    let r = magstand(&["diagnose", "--recording", &rec, "--model-out", &physics]);
+    assert!(r.ok, "{}", r.stderr);
+    let text = std::fs::read_to_string(&physics).unwrap();
+    assert!(
+        text.contains("\"magnetometer\": \"ardupilot:2\""),
+        "the diagnosis's model file does not name its magnetometer"
+    );
+    let r = magstand(&[
+        "compensate",
+        "--model",
+        &physics,
+        "--recording",
+        &other,
+        "--out",
+        &out,
+    ]);
+    assert!(!r.ok && r.stderr.contains("another sensor"), "{}", r.stderr);
     // Told which PX4 slot that sensor is, the PX4 parameters are that slot's.
     let r = export(&["--to", "px4", "--instance", "1"]);
     assert!(r.ok, "{}", r.stderr);

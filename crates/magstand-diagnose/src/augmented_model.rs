@@ -112,6 +112,11 @@ pub struct AugmentedModel {
     /// When `fit` chose the family automatically: what was tried and why this one won.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub choice: Option<magstand_ident::family_choice::FamilyChoice>,
+    /// The firmware's parameter set of the magnetometer it was fitted on (the recording's
+    /// `mag_slot`): `export` writes that set's parameters, and `compensate` refuses a
+    /// recording of another sensor. Absent where the recording did not say.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub magnetometer: Option<magstand_core::magnetometer_slot::MagnetometerSlot>,
     /// Whether the replay follows the recording's logged supply voltage (`bat_v`): a
     /// recording to compensate then needs that column. Absent (false) in older files.
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]

@@ -306,6 +306,8 @@ fn model_file(
         noise: Some(m.noise.to_noise(m.built.full_load_a)),
         method: None,
         choice: None,
+        // The caller, which knows the recording's path for its errors, sets it.
+        magnetometer: None,
         follow_recorded_voltage: ctx.follow_recorded_voltage,
         follow_recorded_current: ctx.follow_recorded_current,
         motor_groups: ctx
