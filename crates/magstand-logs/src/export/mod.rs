@@ -401,6 +401,8 @@ pub fn px4_params(line: &LinearFit, instance: usize) -> String {
         "# PX4 magnetometer power compensation exported by magstand {}\n\
          # {kind_name} {kind}: {power}; coefficients in {unit}, minus the fitted slope\n\
          # (PX4 corrects with mag + coefficient x power).\n\
+         # CAL_MAG_COMP_TYP is shared by every magnetometer: another one's CAL_MAGn_*COMP on\n\
+         # the vehicle must be in these units (fitted on the same input) or 0.\n\
          # Vehicle-Id\tComponent-Id\tName\tValue\tType\n\
          1\t1\t{kind_name}\t{kind}\t6\n",
         env!("CARGO_PKG_VERSION"),
@@ -422,6 +424,8 @@ pub fn ardupilot_params(line: &LinearFit, instance: usize) -> String {
     let mut out = format!(
         "# ArduPilot compassmot parameters exported by magstand {}; {unit}, minus the fitted slope\n\
          # (ArduPilot corrects with field + COMPASS_MOT x {power}).\n\
+         # COMPASS_MOTCT is shared by every compass: another one's COMPASS_MOT* on the vehicle\n\
+         # must be in these units (fitted on the same input) or 0.\n\
          {kind_name},{kind}\n",
         env!("CARGO_PKG_VERSION"),
     );
