@@ -116,16 +116,16 @@ fn export_physics(a: &ExportArgs, model: &magstand_diagnose::AugmentedModel) -> 
     };
     let rec = recording_csv::read(path)?;
     let origin = path.display().to_string();
-    let instance = instance(
-        a,
-        MagnetometerSlot::agreeing_with(model.magnetometer, &rec, path)?,
-    )?;
+    let fitted_on = MagnetometerSlot::agreeing_with(model.magnetometer, &rec, path)?;
+    let fitted_on_log = fitted_on.is_some();
+    let instance = instance(a, fitted_on)?;
     let dist = model.dist_column(&rec, &origin)?;
     let reference = model.reference_ut();
     let input = match a.input {
         Some(InputArg::Current) => LineInput::Current,
         _ => LineInput::Throttle,
     };
+    warn_of_the_autopilots_throttle(a, fitted_on_log, input);
     let text = match a.target {
         Target::Px4 | Target::Ardupilot => {
             let line = line_over_prediction(&dist, reference, &rec, &origin, input)?;
@@ -222,6 +222,24 @@ fn instance(a: &ExportArgs, fitted_on: Option<MagnetometerSlot>) -> Result<usize
     Ok(chosen)
 }
 
+/// Says, for a throttle line in an autopilot's parameters from a model fitted on that
+/// autopilot's log (`from_log`: its magnetometer is named), that the autopilot multiplies it by
+/// its own throttle: the collective thrust demand, which its thrust curve (ArduPilot's
+/// `MOT_THST_EXPO`, PX4's `THR_MDL_FAC`) maps to the motor outputs the log records and magstand
+/// fits on. Where that curve bends, the line's slope in one is not its slope in the other (at
+/// ArduPilot's default expo of 0.65, a demand of 0.4 puts the motors at 0.56 of their spin
+/// range); the current, which both measure alike, has no such mapping.
+fn warn_of_the_autopilots_throttle(a: &ExportArgs, from_log: bool, input: LineInput) {
+    if from_log
+        && input == LineInput::Throttle
+        && matches!(a.target, Target::Px4 | Target::Ardupilot)
+    {
+        eprintln!(
+            "warning: the autopilot multiplies a throttle compensation by its thrust demand, which its thrust curve (ArduPilot's MOT_THST_EXPO, PX4's THR_MDL_FAC) maps to the motor outputs this model was fitted on: where that curve bends, the slope differs between the two. With `bat_a` logged, --input current (COMPASS_MOTCT 2, CAL_MAG_COMP_TYP 2) has no such mapping"
+        );
+    }
+}
+
 /// Runs `magstand export`.
 pub fn run(a: ExportArgs) -> Result<()> {
     check_settings(&a)?;
@@ -263,6 +281,7 @@ pub fn run(a: ExportArgs) -> Result<()> {
         Some(InputArg::Current) => LineInput::Current,
         None => LineInput::of(&model),
     };
+    warn_of_the_autopilots_throttle(&a, fitted_on.is_some(), input);
     let adapt_config = magstand_ident::adaptive::AdaptConfig {
         forgetting: a
             .forgetting

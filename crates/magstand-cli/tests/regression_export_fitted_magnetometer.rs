@@ -55,6 +55,20 @@ fn an_export_writes_the_parameters_of_the_magnetometer_the_model_was_fitted_on()
         args.extend(extra);
         magstand(&args)
     };
+    // A throttle line from a flight log is said to be in the motor outputs' space, which the
+    // autopilot's thrust curve maps to its own throttle; the current is not.
+    let warned = |r: &common::Run| r.stderr.contains("thrust demand");
+    let r = export(&["--to", "ardupilot"]);
+    assert!(r.ok && warned(&r), "{}", r.stderr);
+    let r = export(&[
+        "--to",
+        "ardupilot",
+        "--input",
+        "current",
+        "--recording",
+        &rec,
+    ]);
+    assert!(r.ok && !warned(&r), "{}", r.stderr);
     // Without --instance, and with the same one: compass 2's parameters only.
     for extra in [
         &["--to", "ardupilot"][..],
