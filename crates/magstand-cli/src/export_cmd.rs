@@ -18,6 +18,7 @@ use magstand_logs::export::{
     LineInput, Span, ardupilot_params, c_adaptive, c_header, describe, line_over_prediction,
     linear_approximation, px4_params, rust_adaptive, rust_module,
 };
+use magstand_logs::import::AUTOPILOT_THROTTLE;
 
 /// What to export to.
 #[derive(Clone, Copy, PartialEq, ValueEnum)]
@@ -125,7 +126,7 @@ fn export_physics(a: &ExportArgs, model: &magstand_diagnose::AugmentedModel) -> 
         Some(InputArg::Current) => LineInput::Current,
         _ => LineInput::Throttle,
     };
-    warn_of_the_autopilots_throttle(a, fitted_on_log, input);
+    warn_of_the_autopilots_throttle(a, fitted_on_log, input, Some(&rec));
     let text = match a.target {
         Target::Px4 | Target::Ardupilot => {
             let line = line_over_prediction(&dist, reference, &rec, &origin, input)?;
@@ -222,20 +223,34 @@ fn instance(a: &ExportArgs, fitted_on: Option<MagnetometerSlot>) -> Result<usize
     Ok(chosen)
 }
 
-/// Says, for a throttle line in an autopilot's parameters from a model fitted on that
-/// autopilot's log (`from_log`: its magnetometer is named), that the autopilot multiplies it by
-/// its own throttle: the collective thrust demand, which its thrust curve (ArduPilot's
-/// `MOT_THST_EXPO`, PX4's `THR_MDL_FAC`) maps to the motor outputs the log records and magstand
-/// fits on. Where that curve bends, the line's slope in one is not its slope in the other (at
-/// ArduPilot's default expo of 0.65, a demand of 0.4 puts the motors at 0.56 of their spin
-/// range); the current, which both measure alike, has no such mapping.
-fn warn_of_the_autopilots_throttle(a: &ExportArgs, from_log: bool, input: LineInput) {
-    if from_log
-        && input == LineInput::Throttle
-        && matches!(a.target, Target::Px4 | Target::Ardupilot)
+/// Says, for a throttle line in an autopilot's parameters, which throttle it is fitted
+/// against. The autopilot multiplies it by its own throttle: the collective thrust demand,
+/// which its thrust curve (ArduPilot's `MOT_THST_EXPO`, PX4's `THR_MDL_FAC`) maps to the motor
+/// outputs a log records. Where the recording holds that throttle (`autopilot_throttle`, which
+/// `import` writes from ArduPilot's `CTUN`), the line is fitted against it. Otherwise, for a
+/// model fitted on an autopilot's log (`from_log`: its magnetometer is named), it is fitted
+/// against the motor outputs, and where the curve bends the slopes differ (at ArduPilot's
+/// default expo of 0.65, a demand of 0.4 puts the motors at 0.56 of their spin range): a
+/// warning. The current, which both measure alike, has no such mapping.
+fn warn_of_the_autopilots_throttle(
+    a: &ExportArgs,
+    from_log: bool,
+    input: LineInput,
+    recording: Option<&magstand_core::Recording>,
+) {
+    if input != LineInput::Throttle
+        || !matches!(a.target, Target::Px4 | Target::Ardupilot | Target::Json)
     {
+        return;
+    }
+    let own = recording.is_some_and(|r| r.extra.iter().any(|(n, _)| n == AUTOPILOT_THROTTLE));
+    if own {
         eprintln!(
-            "warning: the autopilot multiplies a throttle compensation by its thrust demand, which its thrust curve (ArduPilot's MOT_THST_EXPO, PX4's THR_MDL_FAC) maps to the motor outputs this model was fitted on: where that curve bends, the slope differs between the two. With `bat_a` logged, --input current (COMPASS_MOTCT 2, CAL_MAG_COMP_TYP 2) has no such mapping"
+            "the throttle line is fitted against the autopilot's own throttle (`{AUTOPILOT_THROTTLE}`), the thrust demand its compensation multiplies"
+        );
+    } else if from_log {
+        eprintln!(
+            "warning: the autopilot multiplies a throttle compensation by its thrust demand, which its thrust curve (ArduPilot's MOT_THST_EXPO, PX4's THR_MDL_FAC) maps to the motor outputs this line is fitted against: where that curve bends, the slope differs between the two. A --recording with `{AUTOPILOT_THROTTLE}` (import writes it from ArduPilot's CTUN) fits it against the autopilot's own; with `bat_a` logged, --input current (COMPASS_MOTCT 2, CAL_MAG_COMP_TYP 2) has no such mapping"
         );
     }
 }
@@ -281,7 +296,7 @@ pub fn run(a: ExportArgs) -> Result<()> {
         Some(InputArg::Current) => LineInput::Current,
         None => LineInput::of(&model),
     };
-    warn_of_the_autopilots_throttle(&a, fitted_on.is_some(), input);
+    warn_of_the_autopilots_throttle(&a, fitted_on.is_some(), input, recording.as_ref());
     let adapt_config = magstand_ident::adaptive::AdaptConfig {
         forgetting: a
             .forgetting

@@ -39,6 +39,7 @@ pub fn streams(log: &LogContents, opts: &ImportOptions) -> Result<VehicleStreams
         out.bat_v = si_stream(log, b, bat_name, "Volt", Quantity::Voltage)?;
         out.bat_a = si_stream(log, b, bat_name, "Curr", Quantity::Current)?;
     }
+    out.autopilot_throttle = autopilot_throttle(log, &mut out.notes);
     // ESC telemetry (BLHeli, DroneCAN): one ESC message per instance, current in A, in motor
     // order.
     let motor_count = out.motors.values.first().map_or(0, |m| m.len());
@@ -292,6 +293,39 @@ fn compass_slot(log: &LogContents, inst: u8, notes: &mut Vec<String>) -> Option<
         ));
     }
     compass.map(MagnetometerSlot::ArduPilotCompass)
+}
+
+/// The throttle ArduPilot's compass motor compensation multiplies (`COMPASS_MOTCT` 1):
+/// `motors->get_throttle()`, the collective thrust demand, logged as `CTUN.ThO` (0..1; Copter
+/// 3.3's `ThrOut` in thousandths). The motor outputs follow it through the thrust curve
+/// (`MOT_THST_EXPO`), so a throttle line for the autopilot is fitted against it, not against
+/// the outputs. None where the log has no `CTUN` or its values are not a throttle.
+fn autopilot_throttle(log: &LogContents, notes: &mut Vec<String>) -> Option<Stream<f64>> {
+    let s = log.series("CTUN", 0)?;
+    let (name, values) = ["ThO", "ThrOut"]
+        .into_iter()
+        .find_map(|n| Some((n, s.field(n)?)))?;
+    let largest = values
+        .iter()
+        .copied()
+        .filter(|v| v.is_finite())
+        .fold(0.0f64, f64::max);
+    // Thousandths where any value is beyond a whole throttle (Copter 3.3), else the fraction.
+    let scale = if largest > 1.0 { 1e-3 } else { 1.0 };
+    if !(largest > 0.0 && largest * scale <= 1.0) {
+        return None;
+    }
+    let stream = s
+        .stream(name, |v| {
+            let v = v * scale;
+            (v.is_finite() && (0.0..=1.0).contains(&v)).then_some(v)
+        })
+        .filter(|st| !st.is_empty())?;
+    notes.push(format!(
+        "the autopilot's throttle (its thrust demand, which COMPASS_MOTCT 1 multiplies): CTUN.{name}{}, written as autopilot_throttle",
+        if scale != 1.0 { " in thousandths" } else { "" }
+    ));
+    Some(stream)
 }
 
 fn motors(
@@ -660,5 +694,39 @@ mod tests {
             "{:?}",
             out.notes
         );
+    }
+
+    /// The autopilot's throttle is read from `CTUN`: 4.x's `ThO` as a fraction, Copter 3.3's
+    /// `ThrOut` in thousandths; values that are not a throttle leave it out.
+    #[test]
+    fn the_autopilots_throttle_is_read_in_either_unit() {
+        let log = |name: &str, v: [f64; 3]| {
+            let mut log = LogContents::new("a.bin".into(), crate::contents::LogFormat::DataFlash);
+            let series = Series {
+                t_s: vec![1.0, 2.0, 3.0],
+                fields: [(name.to_string(), v.to_vec())].into_iter().collect(),
+            };
+            log.topics
+                .insert("CTUN".into(), [(0u8, series)].into_iter().collect());
+            log
+        };
+        let mut notes = Vec::new();
+        let got = |l: &LogContents, notes: &mut Vec<String>| {
+            autopilot_throttle(l, notes).map(|s| s.values)
+        };
+        assert_eq!(
+            got(&log("ThO", [0.0, 0.25, 0.5]), &mut notes),
+            Some(vec![0.0, 0.25, 0.5])
+        );
+        assert_eq!(
+            got(&log("ThrOut", [0.0, 375.0, 500.0]), &mut notes),
+            Some(vec![0.0, 0.375, 0.5])
+        );
+        assert!(
+            notes.len() == 2 && notes[1].contains("thousandths"),
+            "{notes:?}"
+        );
+        assert_eq!(got(&log("ThO", [0.0, 0.0, 0.0]), &mut notes), None);
+        assert_eq!(got(&log("ThO", [0.0, 5000.0, 1.0]), &mut notes), None);
     }
 }

@@ -16,8 +16,8 @@ use crate::contents::{LogContents, LogFormat};
 use crate::field_units::{self, FieldUnit, FieldUnits};
 
 /// Message types the ArduPilot import reads.
-pub const MESSAGES: [&str; 9] = [
-    "MAG", "RCOU", "BAT", "CURR", "ATT", "GPS", "ESC", "PARM", "EV",
+pub const MESSAGES: [&str; 10] = [
+    "MAG", "RCOU", "BAT", "CURR", "ATT", "GPS", "ESC", "PARM", "EV", "CTUN",
 ];
 
 const MAGIC: [u8; 2] = [0xA3, 0x95];

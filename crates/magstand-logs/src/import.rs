@@ -14,6 +14,11 @@ use crate::LogsError;
 use crate::contents::{LogContents, LogFormat};
 use crate::streams::{Position, Stream, VehicleStreams};
 
+/// The recording column of the autopilot's own throttle, 0..1: the thrust demand its power
+/// compensation multiplies, which a throttle line for it is fitted against
+/// ([`crate::export::LineInput::Throttle`]).
+pub const AUTOPILOT_THROTTLE: &str = "autopilot_throttle";
+
 /// What the user chose on the command line; everything is optional.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct ImportOptions {
@@ -406,6 +411,12 @@ fn align(
         .map(monotonic)
         .filter(|s| !s.is_empty());
     let esc: Vec<Stream<f64>> = st.esc_a.iter().map(monotonic).collect();
+    let autopilot_throttle = st
+        .autopilot_throttle
+        .as_ref()
+        .map(monotonic)
+        .filter(|s| !s.is_empty());
+    let mut autopilot_throttle_col = Vec::new();
     let mut esc_cols: Vec<Vec<String>> = vec![Vec::new(); esc.len()];
     let mut rec = Recording {
         thr: vec![Vec::new(); n_motors],
@@ -479,6 +490,9 @@ fn align(
         for (s, col) in esc.iter().zip(esc_cols.iter_mut()) {
             col.push(format_extra(at_scalar(s, t)));
         }
+        if let Some(s) = &autopilot_throttle {
+            autopilot_throttle_col.push(format_extra(at_scalar(s, t)));
+        }
         armed_col.push(if armed { "1" } else { "0" }.to_string());
         landed_col.push(landed.map_or("", |l| if l { "1" } else { "0" }).to_string());
         kinds.push(kind);
@@ -511,6 +525,10 @@ fn align(
     report.segments = segments(&rec, &kinds, mag_gap);
     for (i, col) in esc_cols.into_iter().enumerate() {
         rec.extra.push((format!("esc_{}_a", i + 1), col));
+    }
+    if autopilot_throttle.is_some() {
+        rec.extra
+            .push((AUTOPILOT_THROTTLE.into(), autopilot_throttle_col));
     }
     rec.extra.push(("armed".into(), armed_col));
     if st.landed.is_some() {

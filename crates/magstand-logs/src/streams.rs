@@ -72,6 +72,9 @@ pub struct VehicleStreams {
     /// Each ESC's own current, A, in motor order (PX4 `esc_status`, ArduPilot `ESC`); empty
     /// when the ESCs do not report it.
     pub esc_a: Vec<Stream<f64>>,
+    /// The autopilot's own throttle, 0..1: the collective thrust demand its power compensation
+    /// multiplies (ArduPilot's `CTUN.ThO`), which its thrust curve maps to the motor outputs.
+    pub autopilot_throttle: Option<Stream<f64>>,
     /// Attitude, body to north-east-down.
     pub attitude: Option<Stream<Quat>>,
     /// Armed state changes (or samples).

@@ -25,6 +25,7 @@ use magstand_ident::metrics::{heading_deg, heading_difference_deg};
 use magstand_ident::{InputKind, Model};
 
 use crate::LogsError;
+use crate::import::AUTOPILOT_THROTTLE;
 
 pub mod adaptive_code;
 pub mod firmware;
@@ -184,14 +185,7 @@ fn samples(model: &Model, input: LineInput, span: Span) -> Result<Samples, LogsE
                 .input
                 .check_recording(recording, origin)
                 .map_err(|e| LogsError::Export(e.to_string()))?;
-            let x = match input {
-                LineInput::Throttle => recording.overall_throttle_column(),
-                LineInput::Current => recording.bat_a.clone().ok_or_else(|| {
-                    LogsError::Export(format!(
-                        "{origin}: a line per ampere needs the supply current, but the recording has no `bat_a` column"
-                    ))
-                })?,
-            };
+            let x = input_column(recording, origin, input)?;
             Ok(Samples {
                 x,
                 dist: model.dist_column(recording),
@@ -223,15 +217,45 @@ pub fn line_over_prediction(
     origin: &str,
     input: LineInput,
 ) -> Result<LinearFit, LogsError> {
-    let x = match input {
-        LineInput::Throttle => rec.overall_throttle_column(),
+    let x = input_column(rec, origin, input)?;
+    line_through(&x, dist_ut, reference_ut, input)
+}
+
+/// The line's input at each row of `rec` (named `origin`). The throttle is the autopilot's
+/// own where the import wrote it ([`AUTOPILOT_THROTTLE`]): the thrust demand the autopilot's
+/// compensation multiplies, which its thrust curve maps to the motor commands; otherwise the
+/// mean motor command, which is the stand's throttle. The current is `bat_a`.
+pub fn input_column(
+    rec: &Recording,
+    origin: &str,
+    input: LineInput,
+) -> Result<Vec<f64>, LogsError> {
+    match input {
+        LineInput::Throttle => match rec.extra.iter().find(|(n, _)| n == AUTOPILOT_THROTTLE) {
+            Some((_, cells)) => cells
+                .iter()
+                .enumerate()
+                .map(|(row, cell)| {
+                    cell.trim()
+                        .parse::<f64>()
+                        .ok()
+                        .filter(|v| (0.0..=1.0).contains(v))
+                        .ok_or_else(|| {
+                            LogsError::Export(format!(
+                                "{origin}: row {}, column `{AUTOPILOT_THROTTLE}`: {cell:?} is not a throttle in 0..1",
+                                row + 1
+                            ))
+                        })
+                })
+                .collect(),
+            None => Ok(rec.overall_throttle_column()),
+        },
         LineInput::Current => rec.bat_a.clone().ok_or_else(|| {
             LogsError::Export(format!(
                 "{origin}: a line per ampere needs the supply current, but the recording has no `bat_a` column"
             ))
-        })?,
-    };
-    line_through(&x, dist_ut, reference_ut, input)
+        }),
+    }
 }
 
 /// The least-squares line through the origin of `dist` against `x`, checked for the autopilots'
