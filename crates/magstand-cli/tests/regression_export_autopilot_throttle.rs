@@ -3,7 +3,8 @@
 //! log171) maps to the motor outputs. `export --to ardupilot` fitted the line against the mean
 //! motor output instead: on log171, in flight 0.53 of the PWM range at a demand of 0.39, so
 //! every exported coefficient was a quarter too small. `import` now writes the demand as
-//! `autopilot_throttle`, and a throttle line over such a recording is fitted against it.
+//! `autopilot_throttle` (PX4's thrust setpoint too), and a throttle line over such a recording
+//! is fitted against it.
 mod common;
 use common::magstand;
 
@@ -100,6 +101,52 @@ fn a_throttle_line_for_ardupilot_is_fitted_against_its_own_throttle() {
         assert!(
             (got / outputs_mg - 1.0).abs() > 0.2,
             "{name}: {got} against the demand, {outputs_mg:.3} against the outputs"
+        );
+    }
+}
+
+/// PX4's throttle compensation multiplies the thrust setpoint: `vehicle_thrust_setpoint` from
+/// 1.13, `actuator_controls_0` before. On the 1.9 UAVCAN log the motors run at 0.55 of their
+/// range at a setpoint of 0.36.
+#[test]
+fn a_px4_import_writes_the_thrust_setpoint() {
+    let dir = tempfile::tempdir().unwrap();
+    for (file, source, differs) in [
+        (
+            "px4-fmuv3-uavcan-esc-status.ulg",
+            "actuator_controls_0",
+            true,
+        ),
+        (
+            "px4-fmuv6c-quad-local.ulg",
+            "vehicle_thrust_setpoint",
+            false,
+        ),
+    ] {
+        let rec = dir.path().join("r.csv");
+        let log = common::test_data("real-logs", file);
+        let r = magstand(&["import", "--ulog", &log, "--out", rec.to_str().unwrap()]);
+        assert!(r.ok && r.stderr.contains(source), "{file}: {}", r.stderr);
+        let text = std::fs::read_to_string(&rec).unwrap();
+        let demand = column(&text, "autopilot_throttle");
+        assert!(
+            demand.iter().all(|v| (0.0..=1.0).contains(v)) && demand.iter().any(|v| *v > 0.3),
+            "{file}: {demand:?}"
+        );
+        let motors = (1..=4)
+            .map(|m| column(&text, &format!("thr_{m}")))
+            .fold(vec![0.0; demand.len()], |acc, c| {
+                acc.iter().zip(c).map(|(a, c)| a + c / 4.0).collect()
+            });
+        let widest = demand
+            .iter()
+            .zip(&motors)
+            .map(|(d, m)| (d - m).abs())
+            .fold(0.0f64, f64::max);
+        assert_eq!(
+            widest > 0.1,
+            differs,
+            "{file}: setpoint and outputs differ by up to {widest}"
         );
     }
 }

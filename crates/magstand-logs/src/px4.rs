@@ -69,6 +69,7 @@ pub fn streams(log: &LogContents, opts: &ImportOptions) -> Result<VehicleStreams
             out.esc_a.len()
         ));
     }
+    out.autopilot_throttle = autopilot_throttle(log, &mut out.notes);
     if let Some(a) = log.series("vehicle_attitude", 0) {
         let q: Vec<Option<&[f64]>> = (0..4).map(|i| a.field(&format!("q[{i}]"))).collect();
         if q.iter().all(|c| c.is_some()) {
@@ -99,6 +100,39 @@ pub fn streams(log: &LogContents, opts: &ImportOptions) -> Result<VehicleStreams
 fn scalar(s: &Series, field: &str, valid: impl Fn(f64) -> bool) -> Option<Stream<f64>> {
     s.stream(field, |x| (x.is_finite() && valid(x)).then_some(x))
         .filter(|st| !st.is_empty())
+}
+
+/// The throttle PX4's power compensation multiplies (`CAL_MAG_COMP_TYP` 1): the collective
+/// thrust setpoint's magnitude (`vehicle_thrust_setpoint`, from 1.13), or the throttle of
+/// `actuator_controls_0` in older logs. The motor outputs follow it through the thrust model
+/// (`THR_MDL_FAC`), so a throttle line for PX4 is fitted against it, not against the outputs.
+/// None where the log has neither or its values are not a throttle.
+fn autopilot_throttle(log: &LogContents, notes: &mut Vec<String>) -> Option<Stream<f64>> {
+    let as_throttle = |v: f64| (v.is_finite() && (0.0..=1.0).contains(&v)).then_some(v);
+    let (stream, source) = if let Some(s) = log.series("vehicle_thrust_setpoint", 0) {
+        let axes: Vec<&[f64]> = (0..3)
+            .map(|i| s.field(&format!("xyz[{i}]")))
+            .collect::<Option<_>>()?;
+        let magnitude = |r: usize| axes.iter().map(|a| a[r] * a[r]).sum::<f64>().sqrt();
+        (
+            Stream::from_pairs((0..s.t_s.len()).map(|r| (s.t_s[r], as_throttle(magnitude(r))))),
+            "vehicle_thrust_setpoint (the magnitude of xyz)",
+        )
+    } else {
+        let s = log.series("actuator_controls_0", 0)?;
+        (
+            s.stream("control[3]", as_throttle)?,
+            "actuator_controls_0.control[3]",
+        )
+    };
+    let moving = stream.values.iter().any(|v| *v > 0.0);
+    if stream.is_empty() || !moving {
+        return None;
+    }
+    notes.push(format!(
+        "the autopilot's throttle (its thrust setpoint, which CAL_MAG_COMP_TYP 1 multiplies): {source}, written as autopilot_throttle"
+    ));
+    Some(stream)
 }
 
 fn magnetometer(

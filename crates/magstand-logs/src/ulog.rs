@@ -23,8 +23,10 @@ use crate::LogsError;
 use crate::contents::{LogContents, LogFormat, Series};
 
 /// The topics the PX4 import reads; everything else is skipped while parsing.
-pub const TOPICS: [&str; 13] = [
+pub const TOPICS: [&str; 15] = [
     "sensor_mag",
+    "vehicle_thrust_setpoint",
+    "actuator_controls_0",
     "vehicle_magnetometer",
     "actuator_outputs",
     "actuator_motors",
