@@ -77,7 +77,7 @@ row() { # name file kind input [import args...]
         awk -v name="$name" -v input="$input" '
           /^ +magstand /   { m = sprintf("%.2f / %.2f / %.2f", $2, $3, $4); mi = $8 }
           /^ +PX4 line /   { p = sprintf("%.2f / %.2f / %.2f", $3, $4, $5) }
-          /^ +compassmot / { if ($0 ~ /withheld/) { a = "withheld"; ai = "withheld" } else { a = sprintf("%.2f / %.2f / %.2f", $2, $3, $4); ai = $8 } }
+          /^ +compassmot / { if ($2 == "withheld") { a = "withheld"; ai = "withheld" } else { a = sprintf("%.2f / %.2f / %.2f", $2, $3, $4); ai = $8 } }
           function pct(v) { return v ~ /^[0-9.]+$/ ? v " %" : v }
           END { printf "| %s | %s | %s | %s | %s | %s | %s |\n", name, input, m, p, a, pct(mi), pct(ai) }
         ' "$T/fit.txt" >> "$compat"

@@ -326,8 +326,18 @@ pub fn print_summary(model: &Model) {
 /// Prints the PX4 and ArduPilot figures beside the model's, on the same rows.
 fn print_compatibility(model: &Model, rec: &magstand_core::Recording, origin: &str) -> Result<()> {
     let c = magstand_ident::compatibility::compatibility(model, rec, origin)?;
+    let own_throttle = model.input.kind != InputKind::Current
+        && rec
+            .extra
+            .iter()
+            .any(|(n, _)| n == magstand_core::AUTOPILOT_THROTTLE);
     println!(
-        "beside the autopilots' lines on the same rows (PX4 keeps its line's slope only; interference as ArduPilot's compassmot: field change at the top of the recorded range, % of 530 mG):"
+        "beside the autopilots' lines on the same rows (PX4 keeps its line's slope only; interference as ArduPilot's compassmot: field change at the top of the recorded range, % of 530 mG{}):",
+        if own_throttle {
+            "; the lines on the autopilot's own throttle, `autopilot_throttle`"
+        } else {
+            ""
+        }
     );
     println!(
         "{:>12} {:>23} {:>26} {:>13}",

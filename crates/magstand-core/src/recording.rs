@@ -1,3 +1,5 @@
+use std::path::Path;
+
 use crate::{CoreError, Quat, Vec3};
 
 /// Columns that only a simulation can know: the field without motors, the motor-caused
@@ -21,6 +23,10 @@ pub struct ImuColumns {
     /// `gyr_{x,y,z}_rps`: angular rate in the body frame, rad/s.
     pub gyr_rps: Vec<Vec3>,
 }
+
+/// The recording column of the autopilot's own throttle, 0..1: the thrust demand its power
+/// compensation multiplies ([`Recording::autopilot_throttle`]).
+pub const AUTOPILOT_THROTTLE: &str = "autopilot_throttle";
 
 /// One magnetometer sample per row, with what was commanded and measured alongside it.
 ///
@@ -82,6 +88,34 @@ impl Recording {
     /// Overall throttle for every row.
     pub fn overall_throttle_column(&self) -> Vec<f64> {
         (0..self.len()).map(|r| self.overall_throttle(r)).collect()
+    }
+
+    /// The autopilot's own throttle at every row ([`AUTOPILOT_THROTTLE`], which `import`
+    /// writes): the collective thrust demand an autopilot's throttle compensation multiplies,
+    /// which its thrust curve maps to the motor commands. None where the recording has no such
+    /// column; an error naming the row where a cell is not a throttle in 0..1.
+    pub fn autopilot_throttle(&self, path: &Path) -> Result<Option<Vec<f64>>, CoreError> {
+        let Some((_, cells)) = self.extra.iter().find(|(n, _)| n == AUTOPILOT_THROTTLE) else {
+            return Ok(None);
+        };
+        cells
+            .iter()
+            .enumerate()
+            .map(|(row, cell)| {
+                cell.trim()
+                    .parse::<f64>()
+                    .ok()
+                    .filter(|v| (0.0..=1.0).contains(v))
+                    .ok_or_else(|| CoreError::BadCell {
+                        path: path.to_path_buf(),
+                        row: row + 1,
+                        column: AUTOPILOT_THROTTLE.into(),
+                        found: cell.clone(),
+                        expected: "the autopilot's throttle, a number in 0..1".into(),
+                    })
+            })
+            .collect::<Result<Vec<_>, _>>()
+            .map(Some)
     }
 
     /// Motor commands of one row, one entry per motor.

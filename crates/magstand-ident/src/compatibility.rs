@@ -79,30 +79,60 @@ pub fn compatibility(
         InputKind::Current => InputKind::Current,
         InputKind::Throttle | InputKind::Motors => InputKind::Throttle,
     };
+    // The autopilots' throttle lines multiply their own throttle, the thrust demand, where
+    // the recording holds it: their thrust curve maps it to the motor commands the model is
+    // fitted on, and a line in one is not a line in the other.
+    let own_throttle = match input {
+        InputKind::Throttle => rec
+            .autopilot_throttle(std::path::Path::new(origin))
+            .map_err(|e| IdentError::Data {
+                origin: origin.into(),
+                message: e.to_string(),
+            })?,
+        _ => None,
+    };
+    let on_own_throttle = own_throttle.map(|demand| Recording {
+        thr: vec![demand],
+        overall_only: true,
+        ..rec.clone()
+    });
+    let lines_rec = on_own_throttle.as_ref().unwrap_or(rec);
     // Without motors-off rows (a flight), the model's own reference stands in.
-    let data =
-        Dataset::from_recording_or(rec, input, origin, Some(Vec3::from(model.reference_ut)))?;
-    // The top of the recorded range, in the input's own units.
-    let raw: Vec<f64> = (0..rec.len()).map(|r| data.spec.raw(rec, r)).collect();
-    let top = raw.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-    let bottom = raw.iter().copied().fold(f64::INFINITY, f64::min);
-    let near_top = raw
-        .iter()
-        .filter(|v| **v >= top - TOP_BAND * (top - bottom))
-        .count();
+    let data = Dataset::from_recording_or(
+        lines_rec,
+        input,
+        origin,
+        Some(Vec3::from(model.reference_ut)),
+    )?;
+    // The top of the recorded range, in each input's own units (the model's, and the lines'
+    // where they run on the autopilot's throttle), where enough rows stand near it; a figure
+    // withheld says why.
     let mut withheld = Vec::new();
     let unit = match input {
         InputKind::Current => " A",
         _ => "",
     };
-    let top = if near_top >= MIN_TOP_ROWS {
-        Some(top)
-    } else {
+    let mut top_of = |rec: &Recording, what: &str| -> Option<f64> {
+        let raw: Vec<f64> = (0..rec.len()).map(|r| data.spec.raw(rec, r)).collect();
+        let top = raw.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        let bottom = raw.iter().copied().fold(f64::INFINITY, f64::min);
+        let near_top = raw
+            .iter()
+            .filter(|v| **v >= top - TOP_BAND * (top - bottom))
+            .count();
+        if near_top >= MIN_TOP_ROWS {
+            return Some(top);
+        }
         withheld.push(format!(
-            "interference: only {near_top} rows lie within {:.0} % of the top of the recorded range ({top:.2}{unit}); a figure at the top needs at least {MIN_TOP_ROWS}",
+            "interference{what}: only {near_top} rows lie within {:.0} % of the top of the recorded range ({top:.2}{unit}); a figure at the top needs at least {MIN_TOP_ROWS}",
             TOP_BAND * 100.0
         ));
         None
+    };
+    let top = top_of(rec, "");
+    let lines_top = match &on_own_throttle {
+        Some(own) if top.is_some() => top_of(own, " of the lines, on the autopilot's own throttle"),
+        _ => top,
     };
     let updates = crate::baseline::compassmot_updates(&data, &|_| true);
     let line = |family: Family| -> Result<Figures, IdentError> {
@@ -111,7 +141,7 @@ pub fn compatibility(
                 .with_input(input)
                 .check()?
                 .fit(&data)?,
-            top,
+            lines_top,
         )
     };
     // The two lines are independent fits: one per core.
@@ -212,6 +242,46 @@ mod tests {
                 "{c:?}"
             );
         }
+    }
+
+    /// The autopilots multiply their line by their own throttle, the thrust demand, which
+    /// their thrust curve maps to the motor commands. A disturbance straight in the demand
+    /// (here the commands are its square root) is a line for the autopilots where the
+    /// recording holds the demand (`autopilot_throttle`), and a curve in the commands where it
+    /// does not.
+    #[test]
+    fn the_lines_run_on_the_autopilots_own_throttle_where_it_is_logged() {
+        let k = Vec3::new(6.0, -8.0, 24.0);
+        let mut rec = stair(|u| k * (u * u));
+        let demand: Vec<f64> = rec.thr[0].iter().map(|u| u * u).collect();
+        let model = FitConfig::evenly_spaced(5, Estimation::Global)
+            .check()
+            .unwrap()
+            .fit_recording(&rec, "square")
+            .unwrap();
+        let without = compatibility(&model, &rec, "square").unwrap();
+        rec.extra.push((
+            magstand_core::AUTOPILOT_THROTTLE.into(),
+            demand.iter().map(|d| format!("{d:.6}")).collect(),
+        ));
+        let with = compatibility(&model, &rec, "square").unwrap();
+        for a in 0..3 {
+            assert!(
+                with.px4.r2[a] > 0.99 && without.px4.r2[a] < 0.97,
+                "axis {a}: with the demand {:?}, without {:?}",
+                with.px4,
+                without.px4
+            );
+        }
+        // The model's own figures do not depend on the lines' input.
+        assert_eq!(with.model, without.model);
+        // Both tops have rows enough: |k| at a demand of 1 (commands at 1) over 530 mG.
+        let want = k.norm() / 53.0 * 100.0;
+        let got = with.px4.interference_pct.expect("a figure at the top");
+        assert!((got - want).abs() < 0.5, "{got} against {want}");
+        rec.extra[0].1[7] = "1.5".into();
+        let e = compatibility(&model, &rec, "square").expect_err("a demand beyond 1");
+        assert!(e.to_string().contains("row 8"), "{e}");
     }
 
     /// Regression: on a log ending in a spin-down, the compassmot emulation gave an R² of

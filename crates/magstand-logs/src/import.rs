@@ -14,10 +14,7 @@ use crate::LogsError;
 use crate::contents::{LogContents, LogFormat};
 use crate::streams::{Position, Stream, VehicleStreams};
 
-/// The recording column of the autopilot's own throttle, 0..1: the thrust demand its power
-/// compensation multiplies, which a throttle line for it is fitted against
-/// ([`crate::export::LineInput::Throttle`]).
-pub const AUTOPILOT_THROTTLE: &str = "autopilot_throttle";
+pub use magstand_core::AUTOPILOT_THROTTLE;
 
 /// What the user chose on the command line; everything is optional.
 #[derive(Debug, Clone, Default, PartialEq)]

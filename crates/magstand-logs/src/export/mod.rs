@@ -25,7 +25,6 @@ use magstand_ident::metrics::{heading_deg, heading_difference_deg};
 use magstand_ident::{InputKind, Model};
 
 use crate::LogsError;
-use crate::import::AUTOPILOT_THROTTLE;
 
 pub mod adaptive_code;
 pub mod firmware;
@@ -222,34 +221,19 @@ pub fn line_over_prediction(
 }
 
 /// The line's input at each row of `rec` (named `origin`). The throttle is the autopilot's
-/// own where the import wrote it ([`AUTOPILOT_THROTTLE`]): the thrust demand the autopilot's
-/// compensation multiplies, which its thrust curve maps to the motor commands; otherwise the
-/// mean motor command, which is the stand's throttle. The current is `bat_a`.
+/// own where the import wrote it ([`magstand_core::AUTOPILOT_THROTTLE`]): the thrust demand
+/// the autopilot's compensation multiplies, which its thrust curve maps to the motor commands;
+/// otherwise the mean motor command, which is the stand's throttle. The current is `bat_a`.
 pub fn input_column(
     rec: &Recording,
     origin: &str,
     input: LineInput,
 ) -> Result<Vec<f64>, LogsError> {
     match input {
-        LineInput::Throttle => match rec.extra.iter().find(|(n, _)| n == AUTOPILOT_THROTTLE) {
-            Some((_, cells)) => cells
-                .iter()
-                .enumerate()
-                .map(|(row, cell)| {
-                    cell.trim()
-                        .parse::<f64>()
-                        .ok()
-                        .filter(|v| (0.0..=1.0).contains(v))
-                        .ok_or_else(|| {
-                            LogsError::Export(format!(
-                                "{origin}: row {}, column `{AUTOPILOT_THROTTLE}`: {cell:?} is not a throttle in 0..1",
-                                row + 1
-                            ))
-                        })
-                })
-                .collect(),
-            None => Ok(rec.overall_throttle_column()),
-        },
+        LineInput::Throttle => Ok(rec
+            .autopilot_throttle(std::path::Path::new(origin))
+            .map_err(|e| LogsError::Export(e.to_string()))?
+            .unwrap_or_else(|| rec.overall_throttle_column())),
         LineInput::Current => rec.bat_a.clone().ok_or_else(|| {
             LogsError::Export(format!(
                 "{origin}: a line per ampere needs the supply current, but the recording has no `bat_a` column"
