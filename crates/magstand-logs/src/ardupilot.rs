@@ -198,10 +198,10 @@ fn magnetometer(
 /// compensation of `COMPASS_MOTCT` (or the per-motor set) and logs what it added (`MOX`..`MOZ`,
 /// `MOfsX`..`MOfsZ` in older logs). The import takes it back out, so that the recording holds
 /// the whole disturbance: a line fitted to the rest would be exported as the whole of
-/// `COMPASS_MOT*` and replace the vehicle's compensation by the part it left. Firmware before
-/// 4.0 added it before the soft-iron matrix (`COMPASS_DIA*`, `COMPASS_ODI*`, near identity),
-/// so there the removal is exact to that matrix's departure from identity, and the note says
-/// so. Where the log has no such fields but the parameters say a compensation was on, the
+/// `COMPASS_MOT*` and replace the vehicle's compensation by the part it left. Older firmware
+/// (before per-motor compensation) added it before the soft-iron matrix (`COMPASS_DIA*`,
+/// `COMPASS_ODI*`, near identity), so there the removal is exact to that matrix's departure
+/// from identity, and the note says so. Where the log has no such fields but the parameters say a compensation was on, the
 /// recording holds only what it left, and a warning says so.
 #[allow(clippy::type_complexity)]
 fn applied_motor_compensation<'a>(
@@ -247,7 +247,7 @@ fn applied_motor_compensation<'a>(
         return Ok(None);
     }
     notes.push(format!(
-        "ArduPilot's motor compensation was applied in flight ({}, up to {largest_ut:.1} uT in {}..{}): taken back out, so the recording holds the whole disturbance and exported parameters replace the vehicle's (firmware before 4.0 applied it before the soft-iron matrix, which the removal takes as identity)",
+        "ArduPilot's motor compensation was applied in flight ({}, up to {largest_ut:.1} uT in {}..{}): taken back out, so the recording holds the whole disturbance and exported parameters replace the vehicle's (older firmware applied it before the soft-iron matrix, which the removal takes as identity)",
         on(),
         names[0],
         names[2]
