@@ -71,11 +71,17 @@ pub fn run(a: DiagnoseArgs) -> Result<()> {
         .num_threads(usize::from(a.threads))
         .build()
         .context("starting the worker threads")?;
-    let d = {
+    let mut d = {
         // Cleared from the terminal before the summary is printed.
         let spinner = crate::progress::DiagnosisSpinner::new(&name);
         pool.install(|| diagnose_observed(&rec, &name, &nominal, &config, &spinner))?
     };
+    // The model file names the magnetometer the recording is of, for `export`.
+    if a.model_out.is_some()
+        && let Some(m) = d.model.as_mut()
+    {
+        m.magnetometer = MagnetometerSlot::of_recording(&rec, &a.recording)?;
+    }
     // Every file first, then the terminal: a reader that closes stdout early must not cost
     // an output.
     let mut wrote = Vec::new();
@@ -91,12 +97,7 @@ pub fn run(a: DiagnoseArgs) -> Result<()> {
     }
     if let (Some(p), Some(m)) = (&a.model_out, &d.model) {
         files::ensure_parent(p)?;
-        let magnetometer = MagnetometerSlot::of_recording(&rec, &a.recording)?;
-        magstand_diagnose::AugmentedModel {
-            magnetometer,
-            ..m.clone()
-        }
-        .save(p)?;
+        m.save(p)?;
         wrote.push(p.clone());
     }
     if let Some(dir) = &a.report {

@@ -243,7 +243,7 @@ fn warn_of_the_autopilots_throttle(
     {
         return;
     }
-    let own = recording.is_some_and(|r| r.extra.iter().any(|(n, _)| n == AUTOPILOT_THROTTLE));
+    let own = recording.is_some_and(|r| r.extra_column(AUTOPILOT_THROTTLE).is_some());
     if own {
         eprintln!(
             "the throttle line is fitted against the autopilot's own throttle (`{AUTOPILOT_THROTTLE}`), the thrust demand its compensation multiplies"

@@ -326,14 +326,9 @@ pub fn print_summary(model: &Model) {
 /// Prints the PX4 and ArduPilot figures beside the model's, on the same rows.
 fn print_compatibility(model: &Model, rec: &magstand_core::Recording, origin: &str) -> Result<()> {
     let c = magstand_ident::compatibility::compatibility(model, rec, origin)?;
-    let own_throttle = model.input.kind != InputKind::Current
-        && rec
-            .extra
-            .iter()
-            .any(|(n, _)| n == magstand_core::AUTOPILOT_THROTTLE);
     println!(
         "beside the autopilots' lines on the same rows (PX4 keeps its line's slope only; interference as ArduPilot's compassmot: field change at the top of the recorded range, % of 530 mG{}):",
-        if own_throttle {
+        if c.on_autopilot_throttle {
             "; the lines on the autopilot's own throttle, `autopilot_throttle`"
         } else {
             ""
@@ -525,13 +520,10 @@ pub fn run(a: FitArgs) -> Result<()> {
         (Plan::Local(cfg), _) => cfg.fit_recording_or(&rec, &origin, flight_reference)?,
         (Plan::Physics, Some(nominal)) => {
             let split = magstand_diagnose::model_choice::identification_split(&rec).check()?;
-            let p = magstand_diagnose::model_choice::fit_physics(&rec, &origin, &nominal, &split)?;
-            magstand_diagnose::AugmentedModel {
-                magnetometer: slot,
-                ..p.model.clone()
-            }
-            .save(&a.model_out)
-            .with_context(save_err)?;
+            let mut p =
+                magstand_diagnose::model_choice::fit_physics(&rec, &origin, &nominal, &split)?;
+            p.model.magnetometer = slot;
+            p.model.save(&a.model_out).with_context(save_err)?;
             if let Some(s) = earth_summary {
                 println!("{s}");
             }

@@ -69,7 +69,7 @@ impl MagnetometerSlot {
         rec: &Recording,
         path: &Path,
     ) -> Result<Option<(usize, Self)>, CoreError> {
-        let Some((_, cells)) = rec.extra.iter().find(|(name, _)| name == COLUMN) else {
+        let Some(cells) = rec.extra_column(COLUMN) else {
             return Ok(None);
         };
         let mut found: Option<(usize, Self)> = None;

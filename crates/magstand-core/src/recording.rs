@@ -90,12 +90,21 @@ impl Recording {
         (0..self.len()).map(|r| self.overall_throttle(r)).collect()
     }
 
+    /// The cells of the extra column `name` (one of [`Recording::extra`], which tools pass
+    /// through), if the recording has it.
+    pub fn extra_column(&self, name: &str) -> Option<&[String]> {
+        self.extra
+            .iter()
+            .find(|(n, _)| n == name)
+            .map(|(_, cells)| cells.as_slice())
+    }
+
     /// The autopilot's own throttle at every row ([`AUTOPILOT_THROTTLE`], which `import`
     /// writes): the collective thrust demand an autopilot's throttle compensation multiplies,
     /// which its thrust curve maps to the motor commands. None where the recording has no such
     /// column; an error naming the row where a cell is not a throttle in 0..1.
     pub fn autopilot_throttle(&self, path: &Path) -> Result<Option<Vec<f64>>, CoreError> {
-        let Some((_, cells)) = self.extra.iter().find(|(n, _)| n == AUTOPILOT_THROTTLE) else {
+        let Some(cells) = self.extra_column(AUTOPILOT_THROTTLE) else {
             return Ok(None);
         };
         cells

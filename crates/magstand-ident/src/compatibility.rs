@@ -46,6 +46,9 @@ pub struct Compatibility {
     pub ardupilot: Option<Figures>,
     /// Why figures were withheld, in words.
     pub withheld: Vec<String>,
+    /// Whether the lines ran on the autopilot's own throttle (the recording's
+    /// `autopilot_throttle`) rather than on the model's input.
+    pub on_autopilot_throttle: bool,
 }
 
 /// Rows that must lie within [`TOP_BAND`] of the top of the recorded input range for a figure
@@ -169,6 +172,7 @@ pub fn compatibility(
         px4: px4?,
         ardupilot,
         withheld,
+        on_autopilot_throttle: on_own_throttle.is_some(),
     })
 }
 

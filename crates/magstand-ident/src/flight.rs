@@ -510,10 +510,8 @@ pub fn is_flight(rec: &Recording) -> bool {
         return false;
     };
     let marked = rec
-        .extra
-        .iter()
-        .find(|(n, _)| n == "segment")
-        .is_some_and(|(_, v)| v.iter().any(|s| s == "flight"));
+        .extra_column("segment")
+        .is_some_and(|v| v.iter().any(|s| s == "flight"));
     let tilt = att.iter().map(tilt_deg).fold(0.0, f64::max);
     marked || tilt > 10.0 || yaw_coverage_deg(att) > 45.0
 }

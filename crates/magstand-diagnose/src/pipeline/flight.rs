@@ -25,10 +25,7 @@ pub(crate) struct FlightBaseline {
 
 /// The segment column `magstand import` writes, when present.
 fn segments(rec: &Recording) -> Option<&[String]> {
-    rec.extra
-        .iter()
-        .find(|(n, _)| n == "segment")
-        .map(|(_, v)| v.as_slice())
+    rec.extra_column("segment")
 }
 
 /// The flight baseline of `rec`, or `None` for a stand recording (no attitude, or an attitude
