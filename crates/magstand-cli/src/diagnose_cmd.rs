@@ -7,6 +7,7 @@ use clap::Args;
 
 use crate::files;
 use crate::simulate_cmd::load_scenario;
+use magstand_core::magnetometer_frame::SensorToBody;
 use magstand_core::magnetometer_slot::MagnetometerSlot;
 use magstand_core::recording_csv;
 use magstand_diagnose::{DiagnoseConfig, diagnose_observed, unstated_nominal};
@@ -81,6 +82,7 @@ pub fn run(a: DiagnoseArgs) -> Result<()> {
         && let Some(m) = d.model.as_mut()
     {
         m.magnetometer = MagnetometerSlot::of_recording(&rec, &a.recording)?;
+        m.magnetometer_to_body = SensorToBody::of_recording(&rec, &a.recording)?;
     }
     // Every file first, then the terminal: a reader that closes stdout early must not cost
     // an output.

@@ -7,6 +7,7 @@ use anyhow::{Result, bail};
 use clap::{Args, ValueEnum};
 
 use crate::files;
+use magstand_core::magnetometer_frame::SensorToBody;
 use magstand_core::magnetometer_slot::MagnetometerSlot;
 use magstand_core::recording_csv;
 use magstand_ident::InputKind;
@@ -132,7 +133,13 @@ fn export_physics(a: &ExportArgs, model: &magstand_diagnose::AugmentedModel) -> 
             let line = line_over_prediction(&dist, reference, &rec, &origin, input)?;
             eprint!("{}", describe(&line));
             if a.target == Target::Px4 {
-                px4_params(&line, instance)
+                let frame = model_frame(
+                    model.magnetometer,
+                    model.magnetometer_to_body,
+                    Some((&rec, path)),
+                )?;
+                let frame = px4_frame(a, fitted_on, frame)?;
+                px4_params(&line, instance, frame.as_ref())?
             } else {
                 ardupilot_params(&line, instance)
             }
@@ -221,6 +228,48 @@ fn instance(a: &ExportArgs, fitted_on: Option<MagnetometerSlot>) -> Result<usize
         );
     }
     Ok(chosen)
+}
+
+/// The transform that took the readings of the magnetometer a model describes to the body
+/// frame: the model's own where it names its magnetometer (`slot`, `frame`), else that of the
+/// recording the line is fitted over, which then names the magnetometer.
+fn model_frame(
+    slot: Option<MagnetometerSlot>,
+    frame: Option<SensorToBody>,
+    recording: Option<(&magstand_core::Recording, &std::path::Path)>,
+) -> Result<Option<SensorToBody>> {
+    Ok(match (slot, recording) {
+        (None, Some((rec, path))) => SensorToBody::of_recording(rec, path)?,
+        _ => frame,
+    })
+}
+
+/// The frame PX4's coefficients are written in: the transform that took the magnetometer's
+/// readings to the body frame the model was fitted in (`frame`, the model's
+/// `magnetometer_to_body`), through which PX4's calibration takes the compensation it adds. A
+/// model of a PX4 sensor (`fitted_on`) that does not carry it cannot be mapped back: its
+/// body-frame coefficients would be wrong in sign or axis on a rotated board. A model of an
+/// ArduPilot compass is in the body frame, taken for the PX4 sensor's own, with a warning.
+fn px4_frame(
+    a: &ExportArgs,
+    fitted_on: Option<MagnetometerSlot>,
+    frame: Option<SensorToBody>,
+) -> Result<Option<SensorToBody>> {
+    match (fitted_on, frame) {
+        (Some(slot @ MagnetometerSlot::Px4CalMag(_)), None) => bail!(
+            "{} was fitted on {slot} ({}) but does not say how its readings were taken to the body frame (`magnetometer_to_body`): PX4 adds its compensation before its calibration's rotation and scale, so the coefficients cannot be written in the sensor's frame. Import the log with this version (it writes `mag_to_body`) and fit it again",
+            a.model.display(),
+            slot.describe()
+        ),
+        (Some(slot @ MagnetometerSlot::ArduPilotCompass(_)), None) => {
+            eprintln!(
+                "warning: {} was fitted on {slot}, in ArduPilot's body frame; PX4 adds its compensation in the sensor's own frame, taken here to be the body frame (true where CAL_MAGn_ROT and SENS_BOARD_ROT are 0 and the scale is near 1)",
+                a.model.display()
+            );
+            Ok(None)
+        }
+        (_, frame) => Ok(frame),
+    }
 }
 
 /// Says, for a throttle line in an autopilot's parameters, which throttle it is fitted
@@ -322,9 +371,15 @@ pub fn run(a: ExportArgs) -> Result<()> {
         Target::CAdaptive => c_adaptive(&model, &adapt_config)?,
         Target::RustAdaptive => rust_adaptive(&model, &adapt_config)?,
         Target::Px4 => {
+            let frame = model_frame(
+                model.magnetometer,
+                model.magnetometer_to_body,
+                recording.as_ref().zip(a.recording.as_deref()),
+            )?;
+            let frame = px4_frame(&a, fitted_on, frame)?;
             let line = linear_approximation(&model, input, span)?;
             eprint!("{}", describe(&line));
-            px4_params(&line, instance)
+            px4_params(&line, instance, frame.as_ref())?
         }
         Target::Ardupilot => {
             let line = linear_approximation(&model, input, span)?;

@@ -6,6 +6,7 @@ use clap::{Args, ValueEnum};
 
 use crate::files;
 use crate::simulate_cmd::load_scenario;
+use magstand_core::magnetometer_frame::SensorToBody;
 use magstand_core::magnetometer_slot::MagnetometerSlot;
 use magstand_core::{AXES, recording_csv};
 use magstand_ident::{Estimation, Family, FitConfig, FitSetting, InputKind, Model, Structure};
@@ -504,6 +505,7 @@ pub fn run(a: FitArgs) -> Result<()> {
     let mut rec = recording_csv::read(&a.recording)?;
     let origin = a.recording.display().to_string();
     let slot = MagnetometerSlot::of_recording(&rec, &a.recording)?;
+    let to_body = SensorToBody::of_recording(&rec, &a.recording)?;
     // Printed after the model is written: a reader that closes stdout early must not cost it.
     let mut earth_summary = None;
     let mut flight_reference = None;
@@ -523,6 +525,7 @@ pub fn run(a: FitArgs) -> Result<()> {
             let mut p =
                 magstand_diagnose::model_choice::fit_physics(&rec, &origin, &nominal, &split)?;
             p.model.magnetometer = slot;
+            p.model.magnetometer_to_body = to_body;
             p.model.save(&a.model_out).with_context(save_err)?;
             if let Some(s) = earth_summary {
                 println!("{s}");
@@ -546,6 +549,7 @@ pub fn run(a: FitArgs) -> Result<()> {
                 magstand_diagnose::model_choice::DisturbanceModel::Physics(m) => {
                     magstand_diagnose::AugmentedModel {
                         magnetometer: slot,
+                        magnetometer_to_body: to_body,
                         ..*m
                     }
                     .save(&a.model_out)
@@ -566,6 +570,7 @@ pub fn run(a: FitArgs) -> Result<()> {
     };
     let model = Model {
         magnetometer: slot,
+        magnetometer_to_body: to_body,
         ..model
     };
     model.save(&a.model_out).with_context(save_err)?;

@@ -35,6 +35,7 @@ pub mod fixed_decimal;
 pub mod held_out;
 pub mod input_file;
 pub mod interpolation;
+pub mod magnetometer_frame;
 pub mod magnetometer_slot;
 pub mod rbf;
 mod recording;
@@ -63,6 +64,9 @@ pub type Vec3 = nalgebra::Vector3<f64>;
 
 /// An attitude: the rotation from the body frame to north-east-down.
 pub type Quat = nalgebra::UnitQuaternion<f64>;
+
+/// 3x3 matrix of f64.
+pub type Mat3 = nalgebra::Matrix3<f64>;
 
 /// Axis names in the order magstand always uses them (body frame: forward, right, down).
 pub const AXES: [&str; 3] = ["x", "y", "z"];

@@ -69,35 +69,7 @@ impl MagnetometerSlot {
         rec: &Recording,
         path: &Path,
     ) -> Result<Option<(usize, Self)>, CoreError> {
-        let Some(cells) = rec.extra_column(COLUMN) else {
-            return Ok(None);
-        };
-        let mut found: Option<(usize, Self)> = None;
-        for (row, cell) in cells.iter().enumerate() {
-            let cell = cell.trim();
-            if cell.is_empty() {
-                continue;
-            }
-            let bad = |expected: String| CoreError::BadCell {
-                path: path.to_path_buf(),
-                row: row + 1,
-                column: COLUMN.into(),
-                found: cell.into(),
-                expected,
-            };
-            let slot: Self = cell.parse().map_err(bad)?;
-            match found {
-                Some((first, s)) if s != slot => {
-                    return Err(bad(format!(
-                        "the slot of row {} ({s}): a recording holds one magnetometer",
-                        first + 1
-                    )));
-                }
-                Some(_) => {}
-                None => found = Some((row, slot)),
-            }
-        }
-        Ok(found)
+        rec.one_value_column(COLUMN, path, "a recording holds one magnetometer")
     }
 
     /// The magnetometer of a model fitted on `fitted_on` and applied to `rec` (read from
@@ -127,11 +99,7 @@ impl MagnetometerSlot {
     /// `rec` with `slot` written in every row of its [`COLUMN`] (replacing any), or the column
     /// removed where `slot` is None.
     pub fn write_into(slot: Option<Self>, rec: &mut Recording) {
-        rec.extra.retain(|(name, _)| name != COLUMN);
-        if let Some(slot) = slot {
-            rec.extra
-                .push((COLUMN.into(), vec![slot.to_string(); rec.len()]));
-        }
+        rec.set_one_value_column(COLUMN, slot);
     }
 }
 

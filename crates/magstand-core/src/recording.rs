@@ -99,6 +99,61 @@ impl Recording {
             .map(|(_, cells)| cells.as_slice())
     }
 
+    /// The one value the extra column `name` holds in every row (`import` writes a log's
+    /// properties so, e.g. the magnetometer's parameter set), with the first row (from 0) that
+    /// holds it: None where the column is absent or every cell empty. A cell that does not
+    /// parse, or holds another value than the rows before it, is an error naming its row;
+    /// `why_one` says why the column holds one value (a recording is of one magnetometer).
+    pub fn one_value_column<T>(
+        &self,
+        name: &str,
+        path: &Path,
+        why_one: &str,
+    ) -> Result<Option<(usize, T)>, CoreError>
+    where
+        T: std::str::FromStr<Err = String> + PartialEq + std::fmt::Display,
+    {
+        let Some(cells) = self.extra_column(name) else {
+            return Ok(None);
+        };
+        let mut found: Option<(usize, T)> = None;
+        for (row, cell) in cells.iter().enumerate() {
+            let cell = cell.trim();
+            if cell.is_empty() {
+                continue;
+            }
+            let bad = |expected: String| CoreError::BadCell {
+                path: path.to_path_buf(),
+                row: row + 1,
+                column: name.into(),
+                found: cell.into(),
+                expected,
+            };
+            let value: T = cell.parse().map_err(bad)?;
+            match &found {
+                Some((first, v)) if *v != value => {
+                    return Err(bad(format!(
+                        "the value of row {} ({v}): {why_one}",
+                        first + 1
+                    )));
+                }
+                Some(_) => {}
+                None => found = Some((row, value)),
+            }
+        }
+        Ok(found)
+    }
+
+    /// The recording with `value` written in every row of the extra column `name`
+    /// (replacing any), or the column removed where `value` is None.
+    pub fn set_one_value_column(&mut self, name: &str, value: Option<impl std::fmt::Display>) {
+        self.extra.retain(|(n, _)| n != name);
+        if let Some(value) = value {
+            self.extra
+                .push((name.into(), vec![value.to_string(); self.len()]));
+        }
+    }
+
     /// The autopilot's own throttle at every row ([`AUTOPILOT_THROTTLE`], which `import`
     /// writes): the collective thrust demand an autopilot's throttle compensation multiplies,
     /// which its thrust curve maps to the motor commands. None where the recording has no such

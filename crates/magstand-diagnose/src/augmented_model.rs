@@ -117,6 +117,12 @@ pub struct AugmentedModel {
     /// recording of another sensor. Absent where the recording did not say.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub magnetometer: Option<magstand_core::magnetometer_slot::MagnetometerSlot>,
+    /// The transform that took that magnetometer's readings to the recording's body frame
+    /// (the recording's `mag_to_body`, which `import` writes from PX4's calibration): PX4
+    /// adds its compensation before it, so `export --to px4` maps the coefficients back
+    /// through it. Absent where the recording did not say (the sensor read in the body frame).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub magnetometer_to_body: Option<magstand_core::magnetometer_frame::SensorToBody>,
     /// Whether the replay follows the recording's logged supply voltage (`bat_v`): a
     /// recording to compensate then needs that column. Absent (false) in older files.
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]

@@ -45,6 +45,7 @@ fn coefficients_survive_the_file_bit_for_bit() {
         method: Some("physics".into()),
         choice: None,
         magnetometer: None,
+        magnetometer_to_body: None,
         follow_recorded_voltage: true,
         follow_recorded_current: true,
         motor_groups: Some(vec![vec![0, 2], vec![1], vec![3]]),

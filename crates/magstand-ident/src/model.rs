@@ -129,6 +129,12 @@ pub struct Model {
     /// Absent where the recording did not say (a test stand's).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub magnetometer: Option<magstand_core::magnetometer_slot::MagnetometerSlot>,
+    /// The transform that took that magnetometer's readings to the recording's body frame
+    /// (the recording's `mag_to_body`, which `import` writes from PX4's calibration): PX4
+    /// adds its compensation before it, so `export --to px4` maps the coefficients back
+    /// through it. Absent where the recording did not say (the sensor read in the body frame).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub magnetometer_to_body: Option<magstand_core::magnetometer_frame::SensorToBody>,
 }
 
 /// The normalized input range a model was identified on.
@@ -272,6 +278,7 @@ impl Model {
             identified: None,
             choice: None,
             magnetometer: None,
+            magnetometer_to_body: None,
         }
     }
 

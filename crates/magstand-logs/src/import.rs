@@ -265,6 +265,12 @@ pub fn import(
             magstand_core::magnetometer_slot::COLUMN
         ));
     }
+    if let Some(frame) = streams.mag_to_body.filter(|f| !f.is_identity()) {
+        report.notes.push(format!(
+            "the readings were taken to the body frame by {frame} (row by row; column `{}`): `export --to px4` writes the compensation in the sensor's own frame, where PX4 adds it",
+            magstand_core::magnetometer_frame::COLUMN
+        ));
+    }
     let rec = align(log, &streams, opts, &mut report)?;
     Ok((rec, report))
 }
@@ -536,6 +542,7 @@ fn align(
         kinds.iter().map(|k| k.name().to_string()).collect(),
     ));
     magstand_core::magnetometer_slot::MagnetometerSlot::write_into(st.mag_slot, &mut rec);
+    magstand_core::magnetometer_frame::SensorToBody::write_into(st.mag_to_body, &mut rec);
     rec.check()?;
     Ok(rec)
 }

@@ -7,8 +7,9 @@
 //! attitude and states at the same instants, on a clock that starts at `t_s`.
 use std::path::Path;
 
-use magstand_core::Recording;
 use magstand_core::atomic_file::{self, Staged};
+use magstand_core::magnetometer_frame::SensorToBody;
+use magstand_core::{Recording, Vec3};
 
 use crate::LogsError;
 
@@ -19,6 +20,11 @@ pub struct LogWriteOptions {
     pub landed: bool,
     /// Magnetometer device id (PX4 `CAL_MAG0_ID`), any non-zero number.
     pub device_id: u32,
+    /// The PX4 calibration the ULog carries for its magnetometer. Without one it is an
+    /// internal sensor of a board mounted unturned, with no offsets or scale; with one, the
+    /// readings are written as the driver would publish them, so that the calibration takes
+    /// them back to the recording's field.
+    pub px4_calibration: Option<Px4MagCalibration>,
 }
 
 impl Default for LogWriteOptions {
@@ -26,7 +32,43 @@ impl Default for LogWriteOptions {
         Self {
             landed: true,
             device_id: 396_825,
+            px4_calibration: None,
         }
+    }
+}
+
+/// A PX4 magnetometer calibration (`CAL_MAG0_*`), which takes a reading as the driver
+/// published it to the body frame: `R · S · (raw − offset)`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Px4MagCalibration {
+    /// `CAL_MAG0_ROT`: a PX4 rotation from 0 to 15 (a yaw in steps of 45 degrees, after a
+    /// roll of 180 from 8 on), or -1 for an internal sensor, which follows `board_rotation`.
+    pub rotation: i32,
+    /// `SENS_BOARD_ROT`, the board's rotation (the same codes).
+    pub board_rotation: i32,
+    /// `CAL_MAG0_{X,Y,Z}OFF`, gauss.
+    pub offset_g: [f64; 3],
+    /// `CAL_MAG0_{X,Y,Z}SCALE`, the scale matrix's diagonal.
+    pub scale: [f64; 3],
+    /// `CAL_MAG0_{X,Y,Z}ODIAG`, its off-diagonal (xy, xz, yz).
+    pub off_diagonal: [f64; 3],
+}
+
+impl Px4MagCalibration {
+    /// The transform from the sensor's frame to the body frame, with every parameter as the
+    /// log stores it (single precision), or why there is none.
+    fn sensor_to_body(&self) -> Result<SensorToBody, String> {
+        let code = match self.rotation {
+            -1 => self.board_rotation,
+            c => c,
+        };
+        let rotation = crate::px4::px4_rotation(code.into())
+            .ok_or_else(|| format!("a PX4 rotation from 0 to 15; found {code}"))?;
+        let f = |v: f64| v as f32 as f64;
+        let ([xs, ys, zs], [xo, yo, zo]) = (self.scale.map(f), self.off_diagonal.map(f));
+        let scale = magstand_core::Mat3::new(xs, xo, yo, xo, ys, zo, yo, zo, zs);
+        let m = rotation.to_rotation_matrix().into_inner() * scale;
+        SensorToBody::new(std::array::from_fn(|r| std::array::from_fn(|c| m[(r, c)])))
     }
 }
 
@@ -86,19 +128,47 @@ pub fn ulog_bytes(rec: &Recording, opts: &LogWriteOptions) -> Vec<u8> {
     };
     let sys = b"magstand";
     info(&mut out, &format!("char[{}] sys_name", sys.len()), sys);
-    let params: [(&str, i32); 3] = [
-        ("CAL_MAG0_ID", opts.device_id as i32),
+    let cal = opts.px4_calibration;
+    let mut params: Vec<(String, [u8; 4], &str)> = vec![
+        (
+            "CAL_MAG0_ID".into(),
+            (opts.device_id as i32).to_le_bytes(),
+            "int32_t",
+        ),
         // -1: an internal magnetometer, in the board frame.
-        ("CAL_MAG0_ROT", -1),
-        ("CAL_MAG_COMP_TYP", 0),
+        (
+            "CAL_MAG0_ROT".into(),
+            cal.map_or(-1, |c| c.rotation).to_le_bytes(),
+            "int32_t",
+        ),
+        ("CAL_MAG_COMP_TYP".into(), 0i32.to_le_bytes(), "int32_t"),
     ];
-    for (name, v) in params {
-        let key = format!("int32_t {name}");
+    if let Some(c) = cal {
+        params.push((
+            "SENS_BOARD_ROT".into(),
+            c.board_rotation.to_le_bytes(),
+            "int32_t",
+        ));
+        for (k, axis) in ["X", "Y", "Z"].iter().enumerate() {
+            for (name, v) in [
+                ("OFF", c.offset_g[k]),
+                ("SCALE", c.scale[k]),
+                ("ODIAG", c.off_diagonal[k]),
+            ] {
+                let bytes = (v as f32).to_le_bytes();
+                params.push((format!("CAL_MAG0_{axis}{name}"), bytes, "float"));
+            }
+        }
+    }
+    for (name, v, ty) in params {
+        let key = format!("{ty} {name}");
         let mut p = vec![key.len() as u8];
         p.extend_from_slice(key.as_bytes());
-        p.extend_from_slice(&v.to_le_bytes());
+        p.extend_from_slice(&v);
         ulog_msg(&mut out, b'P', &p);
     }
+    // The readings as the driver published them: the calibration's inverse of the field.
+    let frame = cal.map(|c| (c.sensor_to_body(), c.offset_g.map(|v| v as f32 as f64)));
     let topics = [
         "sensor_mag",
         "actuator_motors",
@@ -127,7 +197,13 @@ pub fn ulog_bytes(rec: &Recording, opts: &LogWriteOptions) -> Vec<u8> {
         let us = micros(rec.t_s[r]).to_le_bytes();
         let mut m = [us, us].concat();
         m.extend_from_slice(&opts.device_id.to_le_bytes());
-        let g = rec.mag_ut[r] / 100.0;
+        let g = match &frame {
+            Some((Ok(frame), offset_g)) => frame
+                .to_sensor(rec.mag_ut[r] / 100.0)
+                .map_or(Vec3::repeat(f64::NAN), |v| v + Vec3::from(*offset_g)),
+            // A calibration the import will refuse: its field as it is.
+            _ => rec.mag_ut[r] / 100.0,
+        };
         let temp = rec.temp_c.as_ref().map_or(f64::NAN, |c| c[r]);
         f32s(&mut m, &[g.x, g.y, g.z, temp]);
         m.extend_from_slice(&0u32.to_le_bytes());

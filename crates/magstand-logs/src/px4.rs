@@ -10,6 +10,7 @@
 //!   `UAVCAN_ENABLE` >= 2) are raw 0..8191.
 //! * `battery_status[0]`, `vehicle_attitude`, `actuator_armed` (or `vehicle_status`),
 //!   `vehicle_land_detected`, and GPS position and UTC time for the Earth-field model.
+use magstand_core::magnetometer_frame::SensorToBody;
 use magstand_core::magnetometer_slot::MagnetometerSlot;
 use magstand_core::{Quat, Vec3};
 
@@ -30,7 +31,7 @@ fn missing(log: &LogContents, what: &str, hint: &str) -> LogsError {
 
 /// A PX4 `Rotation` enum value as a rotation from the sensor to the body frame, for the values
 /// that are a yaw in steps of 45 degrees, optionally after a roll of 180 degrees (0..=15).
-fn px4_rotation(code: i64) -> Option<Quat> {
+pub(crate) fn px4_rotation(code: i64) -> Option<Quat> {
     let (roll, yaw_steps) = match code {
         0..=7 => (0.0, code),
         8..=15 => (std::f64::consts::PI, code - 8),
@@ -233,6 +234,20 @@ fn magnetometer(
             out.notes.push(format!(
                 "calibration CAL_MAG{k} applied (offsets, scale, rotation {code})"
             ));
+            // PX4 adds its power compensation before this transform: `export` maps the
+            // body-frame coefficients back through it.
+            let rows = rot.to_rotation_matrix().into_inner() * scale;
+            out.mag_to_body = match SensorToBody::new(std::array::from_fn(|r| {
+                std::array::from_fn(|c| rows[(r, c)])
+            })) {
+                Ok(frame) => Some(frame),
+                Err(why) => {
+                    out.notes.push(format!(
+                        "warning: CAL_MAG{k}'s rotation and scale are not {why}: `export --to px4` cannot write a compensation for this sensor"
+                    ));
+                    None
+                }
+            };
             (off, scale, rot)
         }
         None => {

@@ -63,6 +63,9 @@ pub struct VehicleStreams {
     pub mag_temp_c: Option<Stream<f64>>,
     /// The firmware's parameter set of the chosen magnetometer, where the log tells it.
     pub mag_slot: Option<magstand_core::magnetometer_slot::MagnetometerSlot>,
+    /// The transform the import applied to take the chosen magnetometer's readings to the
+    /// body frame, where the firmware adds its compensation before it (PX4's calibration).
+    pub mag_to_body: Option<magstand_core::magnetometer_frame::SensorToBody>,
     /// Motor commands mapped to 0..1, one entry per motor.
     pub motors: Stream<Vec<f64>>,
     /// Battery voltage, V.

@@ -58,7 +58,7 @@ fn a_linear_model_exports_its_own_slope_with_the_autopilots_units_and_signs() {
     // ArduPilot: field + COMPASS_MOT x throttle, in mG: -k x 10.
     assert_eq!(value(&ap, "COMPASS_MOT_Z"), 160.0);
     assert_eq!(value(&ardupilot_params(&line, 2), "COMPASS_MOT2_X"), -40.0);
-    let px4 = px4_params(&line, 0);
+    let px4 = px4_params(&line, 0, None).unwrap();
     assert_eq!(value(&px4, "CAL_MAG_COMP_TYP"), 1.0);
     // PX4: mag + coefficient x throttle, in gauss: -k x 0.01.
     assert!((value(&px4, "CAL_MAG0_YCOMP") + 0.1).abs() < 1e-9, "{px4}");
@@ -76,8 +76,11 @@ fn a_linear_model_exports_its_own_slope_with_the_autopilots_units_and_signs() {
     }
     let line = line_of(&amps).unwrap();
     assert!((line.slope[0] - 0.25).abs() < 1e-12);
-    assert_eq!(value(&px4_params(&line, 1), "CAL_MAG_COMP_TYP"), 2.0);
-    assert!((value(&px4_params(&line, 1), "CAL_MAG1_XCOMP") + 2.5).abs() < 1e-9);
+    assert_eq!(
+        value(&px4_params(&line, 1, None).unwrap(), "CAL_MAG_COMP_TYP"),
+        2.0
+    );
+    assert!((value(&px4_params(&line, 1, None).unwrap(), "CAL_MAG1_XCOMP") + 2.5).abs() < 1e-9);
     assert_eq!(value(&ardupilot_params(&line, 1), "COMPASS_MOTCT"), 2.0);
     assert!((value(&ardupilot_params(&line, 1), "COMPASS_MOT_X") + 2.5).abs() < 1e-9);
 }
@@ -334,7 +337,7 @@ fn the_json_document_carries_the_table_and_the_autopilot_values() {
         let x = x.as_f64().unwrap();
         assert_eq!(d.as_f64().unwrap(), model.dist_at_input(x, &mut s)[2]);
     }
-    let px4 = px4_params(&line, 0);
+    let px4 = px4_params(&line, 0, None).unwrap();
     let z = doc["linear"]["px4"]["ZCOMP"].as_f64().unwrap();
     assert!(
         (z - value(&px4, "CAL_MAG0_ZCOMP")).abs() < 1e-6,

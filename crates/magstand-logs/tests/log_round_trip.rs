@@ -132,3 +132,81 @@ fn a_landed_stand_is_a_ground_segment_and_selection_keeps_it() {
             .all(|s| s.kind == SegmentKind::Ground)
     );
 }
+
+/// A PX4 calibration that turns and scales the sensor (a board mounted turned by 135 degrees,
+/// an external sensor upside down and turned by 90) is taken back out by the import, and the
+/// transform it applied is written in `mag_to_body`, where `export` finds the frame PX4 adds
+/// its compensation in.
+#[test]
+fn a_turned_and_scaled_px4_calibration_is_taken_out_and_its_transform_kept() {
+    use magstand_core::magnetometer_frame::SensorToBody;
+    use magstand_logs::log_writer::Px4MagCalibration;
+    let rec = run();
+    for (rotation, board_rotation, turned) in [(-1, 3, 135.0f64), (10, 0, 90.0)] {
+        let cal = Px4MagCalibration {
+            rotation,
+            board_rotation,
+            offset_g: [0.12, -0.05, 0.3],
+            scale: [1.08, 0.94, 1.02],
+            off_diagonal: [0.015, -0.02, 0.01],
+        };
+        let opts = LogWriteOptions {
+            landed: false,
+            px4_calibration: Some(cal),
+            ..LogWriteOptions::default()
+        };
+        let (back, report) = import_bytes(
+            &ulog_bytes(&rec, &opts),
+            Path::new("turned.ulg"),
+            &ImportOptions::default(),
+        )
+        .unwrap();
+        let label = format!("CAL_MAG0_ROT {rotation}, SENS_BOARD_ROT {board_rotation}");
+        compare(&rec, &back, 1e-6, &label);
+        let frame = SensorToBody::of_recording(&back, Path::new("turned.csv"))
+            .unwrap()
+            .unwrap_or_else(|| panic!("{label}: no mag_to_body"));
+        // The expected transform, worked out here from the rotation's definition: a yaw of
+        // `turned` degrees after (for codes 8 to 15) a roll of 180.
+        let (c, s) = (turned.to_radians().cos(), turned.to_radians().sin());
+        let yaw = magstand_core::Mat3::new(c, -s, 0.0, s, c, 0.0, 0.0, 0.0, 1.0);
+        let roll = match rotation {
+            8..=15 => {
+                magstand_core::Mat3::from_diagonal(&magstand_core::Vec3::new(1.0, -1.0, -1.0))
+            }
+            _ => magstand_core::Mat3::identity(),
+        };
+        let f = |v: f64| v as f32 as f64;
+        let scale = magstand_core::Mat3::new(
+            f(1.08),
+            f(0.015),
+            f(-0.02),
+            f(0.015),
+            f(0.94),
+            f(0.01),
+            f(-0.02),
+            f(0.01),
+            f(1.02),
+        );
+        let expected = yaw * roll * scale;
+        let d = (frame.matrix() - expected).abs().max();
+        assert!(
+            d < 1e-12,
+            "{label}: mag_to_body {frame}, expected {expected}"
+        );
+        assert!(
+            report.notes.iter().any(|n| n.contains("mag_to_body")),
+            "{label}: {:?}",
+            report.notes
+        );
+    }
+    // Without a calibration's turn or scale, nothing is written: the sensor reads the body.
+    let (back, _) = import_bytes(
+        &ulog_bytes(&rec, &LogWriteOptions::default()),
+        Path::new("plain.ulg"),
+        &ImportOptions::default(),
+    )
+    .unwrap();
+    let frame = SensorToBody::of_recording(&back, Path::new("plain.csv")).unwrap();
+    assert!(frame.is_none_or(|f| f.is_identity()), "{frame:?}");
+}

@@ -308,6 +308,7 @@ fn model_file(
         choice: None,
         // The caller, which knows the recording's path for its errors, sets it.
         magnetometer: None,
+        magnetometer_to_body: None,
         follow_recorded_voltage: ctx.follow_recorded_voltage,
         follow_recorded_current: ctx.follow_recorded_current,
         motor_groups: ctx

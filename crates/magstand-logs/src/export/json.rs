@@ -8,10 +8,14 @@
 //!   "format": "magstand-export", "version": 1, "generator": "magstand 0.1.0",
 //!   "model": {"method": "...", "input": "throttle"|"motors"|"current", "input_unit": "1"|"A",
 //!             "reference_ut": [x, y, z],
-//!             "magnetometer": "px4:N"|"ardupilot:N"},   // absent where the model does not
+//!             "magnetometer": "px4:N"|"ardupilot:N",    // absent where the model does not
 //!                                                   // say: the sensor whose parameters the
 //!                                                   // lines below are (CAL_MAGn, compass n;
 //!                                                   // the keys are named as compass 1's)
+//!             "magnetometer_to_body": [[..], [..], [..]]}, // absent where the model does not
+//!                                                   // say: the matrix that took the sensor's
+//!                                                   // readings to the body frame; the "px4"
+//!                                                   // coefficients are mapped back through it
 //!   "table": {"input": [...],                       // 201 raw inputs, 0 .. top of range
 //!             "dist_ut": [[...], [...], [...]],     // disturbance per axis (every motor at
 //!                                                   // the same command for a per-motor model)
@@ -59,6 +63,8 @@ struct ModelInfo<'a> {
     reference_ut: [f64; 3],
     #[serde(skip_serializing_if = "Option::is_none")]
     magnetometer: Option<String>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    magnetometer_to_body: Option<[[f64; 3]; 3]>,
 }
 
 #[derive(Serialize)]
@@ -105,7 +111,12 @@ pub fn export_json(
             .collect();
         std::array::from_fn(|a| column(&v, a))
     });
-    let (px4, ap) = (line.px4(), line.ardupilot());
+    // PX4 adds its compensation in the sensor's own frame (see `px4_params`).
+    let px4 = match model.magnetometer_to_body.filter(|f| !f.is_identity()) {
+        Some(f) => line.in_sensor_frame(&f)?.px4(),
+        None => line.px4(),
+    };
+    let ap = line.ardupilot();
     let doc = Document {
         format: FORMAT,
         version: VERSION,
@@ -123,6 +134,7 @@ pub fn export_json(
             },
             reference_ut: model.reference_ut,
             magnetometer: model.magnetometer.map(|m| m.to_string()),
+            magnetometer_to_body: model.magnetometer_to_body.map(|f| f.rows()),
         },
         table: Table {
             dist_ut: std::array::from_fn(|a| column(&dist, a)),

@@ -13,12 +13,15 @@
 //! Units: PX4 `CAL_MAGn_{X,Y,Z}COMP` in gauss per unit throttle (`CAL_MAG_COMP_TYP` 1) or
 //! gauss per kiloampere (`CAL_MAG_COMP_TYP` 2); ArduPilot `COMPASS_MOT_{X,Y,Z}` in milligauss
 //! per unit throttle (`COMPASS_MOTCT` 1) or per ampere (`COMPASS_MOTCT` 2). 1 µT = 10 mG =
-//! 0.01 G. Both apply the correction in the sensor frame before the board rotation; a model
-//! fitted on body-frame data matches when the sensor is mounted without rotation.
+//! 0.01 G. ArduPilot adds its correction after rotating the reading to the body frame; PX4
+//! adds it to the reading as the driver published it, before its calibration's rotation and
+//! scale, so a PX4 line is written in that frame where the model names it
+//! ([`magstand_core::magnetometer_frame`]).
 //!
 //! The other targets: [`per_motor`] (ArduPilot's `COMPASS_PMOT*`), [`firmware`] (the full
 //! model as a C header or a `no_std` Rust module) and [`json`] (a table and every figure, for
 //! other tools).
+use magstand_core::magnetometer_frame::SensorToBody;
 use magstand_core::{AXES, Recording, Vec3};
 use magstand_ident::compatibility::ardupilot_interference_pct;
 use magstand_ident::metrics::{heading_deg, heading_difference_deg};
@@ -99,6 +102,23 @@ pub struct LinearFit {
 }
 
 impl LinearFit {
+    /// The line with its slopes in a magnetometer's own frame: each body-frame slope mapped
+    /// back through `frame`, the transform that took the sensor's readings to the body frame
+    /// (PX4 adds its compensation before its calibration's rotation and scale). The other
+    /// figures describe the line's fit, which the frame does not change.
+    pub fn in_sensor_frame(&self, frame: &SensorToBody) -> Result<LinearFit, LogsError> {
+        let slope = frame.to_sensor(Vec3::from(self.slope)).ok_or_else(|| {
+            LogsError::Export(format!(
+                "the slopes {:?} could not be mapped back through the sensor-to-body matrix {frame}",
+                self.slope
+            ))
+        })?;
+        Ok(LinearFit {
+            slope: slope.into(),
+            ..self.clone()
+        })
+    }
+
     /// ArduPilot compassmot's interference figure for this line: the field change at the top
     /// of the range in percent of 530 mG (compassmot's own reference). ArduPilot's guidance:
     /// below 30 % fine, 30-60 % a grey zone, above 60 % unacceptable.
@@ -399,16 +419,43 @@ impl Autopilot {
 }
 
 /// PX4 parameters in the QGroundControl parameter-file format, for magnetometer `instance`.
-pub fn px4_params(line: &LinearFit, instance: usize) -> String {
+///
+/// `frame` is the transform that took the magnetometer's readings to the body frame the line
+/// was fitted in (a model's `magnetometer_to_body`): PX4 adds its compensation to the reading
+/// before its calibration's rotation and scale, so the coefficients are written in the
+/// sensor's own frame, `−frame⁻¹ · slope`. Without it the sensor is taken to read in the body
+/// frame (a test stand's magnetometer, or a calibration without rotation or scale).
+pub fn px4_params(
+    line: &LinearFit,
+    instance: usize,
+    frame: Option<&SensorToBody>,
+) -> Result<String, LogsError> {
     let (power, unit) = match line.input {
         LineInput::Current => ("current (battery 0)", "G/kA"),
         LineInput::Throttle => ("throttle", "G per unit throttle"),
     };
-    let [(kind_name, kind), coefficients @ ..] = Autopilot::Px4.parameters(line, instance);
+    let (sensor_line, frame_note) = match frame.filter(|f| !f.is_identity()) {
+        Some(f) => (
+            line.in_sensor_frame(f)?,
+            format!(
+                "# In the sensor's own frame, where PX4 adds them: the body-frame slopes mapped back\n\
+                 # through the calibration's rotation and scale the log had (sensor to body,\n\
+                 # row by row: {f}). A new calibration leaves them as they are.\n"
+            ),
+        ),
+        None => (
+            line.clone(),
+            "# In the body frame: PX4 adds them in the sensor's own frame, which this is where the\n\
+             # sensor's calibration has no rotation or scale (the model names none).\n"
+                .to_string(),
+        ),
+    };
+    let [(kind_name, kind), coefficients @ ..] = Autopilot::Px4.parameters(&sensor_line, instance);
     let mut out = format!(
         "# PX4 magnetometer power compensation exported by magstand {}\n\
          # {kind_name} {kind}: {power}; coefficients in {unit}, minus the fitted slope\n\
          # (PX4 corrects with mag + coefficient x power).\n\
+         {frame_note}\
          # CAL_MAG_COMP_TYP is shared by every magnetometer: another one's CAL_MAGn_*COMP on\n\
          # the vehicle must be in these units (fitted on the same input) or 0.\n\
          # Vehicle-Id\tComponent-Id\tName\tValue\tType\n\
@@ -418,7 +465,7 @@ pub fn px4_params(line: &LinearFit, instance: usize) -> String {
     for (name, value) in coefficients {
         out += &format!("1\t1\t{name}\t{value:.6}\t9\n");
     }
-    out
+    Ok(out)
 }
 
 /// ArduPilot parameters as a `.param` file (`NAME,VALUE` lines) for compass `instance` (1, 2
