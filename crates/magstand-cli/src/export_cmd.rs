@@ -16,8 +16,8 @@ use magstand_logs::export::per_motor::{
     describe_per_motor, per_motor_fit, per_motor_over_prediction, per_motor_params,
 };
 use magstand_logs::export::{
-    LineInput, Span, ardupilot_params, c_adaptive, c_header, describe, line_over_prediction,
-    linear_approximation, px4_params, rust_adaptive, rust_module,
+    Autopilot, LineInput, Span, ardupilot_params, c_adaptive, c_header, describe,
+    line_over_prediction, linear_approximation, px4_params, rust_adaptive, rust_module,
 };
 use magstand_logs::import::AUTOPILOT_THROTTLE;
 
@@ -132,16 +132,16 @@ fn export_physics(a: &ExportArgs, model: &magstand_diagnose::AugmentedModel) -> 
         Target::Px4 | Target::Ardupilot => {
             let line = line_over_prediction(&dist, reference, &rec, &origin, input)?;
             eprint!("{}", describe(&line));
+            let frame = model_frame(
+                model.magnetometer,
+                model.magnetometer_to_body,
+                Some((&rec, path)),
+            )?;
+            let frame = compensation_frame(a, fitted_on, frame)?;
             if a.target == Target::Px4 {
-                let frame = model_frame(
-                    model.magnetometer,
-                    model.magnetometer_to_body,
-                    Some((&rec, path)),
-                )?;
-                let frame = px4_frame(a, fitted_on, frame)?;
                 px4_params(&line, instance, frame.as_ref())?
             } else {
-                ardupilot_params(&line, instance)
+                ardupilot_params(&line, instance, frame.as_ref())?
             }
         }
         _ => {
@@ -244,32 +244,35 @@ fn model_frame(
     })
 }
 
-/// The frame PX4's coefficients are written in: the transform that took the magnetometer's
-/// readings to the body frame the model was fitted in (`frame`, the model's
-/// `magnetometer_to_body`), through which PX4's calibration takes the compensation it adds. A
-/// model of a PX4 sensor (`fitted_on`) that does not carry it cannot be mapped back: its
-/// body-frame coefficients would be wrong in sign or axis on a rotated board. A model of an
-/// ArduPilot compass is in the body frame, taken for the PX4 sensor's own, with a warning.
-fn px4_frame(
+/// The frame the target autopilot adds the compensation in, as the transform to the body
+/// frame the model was fitted in ([`Autopilot::compensation_frame`]: `frame`, the model's
+/// `magnetometer_to_body`, where the model's magnetometer `fitted_on` is the target's). PX4
+/// adds it before its calibration's rotation and scale: a model of a PX4 sensor that does not
+/// carry that transform cannot be written in the sensor's frame, and its body-frame
+/// coefficients would be wrong in sign or axis on a turned board. A model of an ArduPilot
+/// compass exported to PX4 takes the PX4 sensor's frame for the body frame, with a warning.
+fn compensation_frame(
     a: &ExportArgs,
     fitted_on: Option<MagnetometerSlot>,
     frame: Option<SensorToBody>,
 ) -> Result<Option<SensorToBody>> {
-    match (fitted_on, frame) {
-        (Some(slot @ MagnetometerSlot::Px4CalMag(_)), None) => bail!(
+    let autopilot = match a.target {
+        Target::Px4 => Autopilot::Px4,
+        _ => Autopilot::ArduPilot,
+    };
+    match (autopilot, fitted_on, frame) {
+        (Autopilot::Px4, Some(slot @ MagnetometerSlot::Px4CalMag(_)), None) => bail!(
             "{} was fitted on {slot} ({}) but does not say how its readings were taken to the body frame (`magnetometer_to_body`): PX4 adds its compensation before its calibration's rotation and scale, so the coefficients cannot be written in the sensor's frame. Import the log with this version (it writes `mag_to_body`) and fit it again",
             a.model.display(),
             slot.describe()
         ),
-        (Some(slot @ MagnetometerSlot::ArduPilotCompass(_)), None) => {
-            eprintln!(
-                "warning: {} was fitted on {slot}, in ArduPilot's body frame; PX4 adds its compensation in the sensor's own frame, taken here to be the body frame (true where CAL_MAGn_ROT and SENS_BOARD_ROT are 0 and the scale is near 1)",
-                a.model.display()
-            );
-            Ok(None)
-        }
-        (_, frame) => Ok(frame),
+        (Autopilot::Px4, Some(slot @ MagnetometerSlot::ArduPilotCompass(_)), _) => eprintln!(
+            "warning: {} was fitted on {slot}, in ArduPilot's body frame; PX4 adds its compensation in the sensor's own frame, taken here to be the body frame (true where CAL_MAGn_ROT and SENS_BOARD_ROT are 0 and the scale is near 1)",
+            a.model.display()
+        ),
+        _ => {}
     }
+    Ok(autopilot.compensation_frame(fitted_on, frame))
 }
 
 /// Says, for a throttle line in an autopilot's parameters, which throttle it is fitted
@@ -370,21 +373,20 @@ pub fn run(a: ExportArgs) -> Result<()> {
         Target::Rust => rust_module(&model)?,
         Target::CAdaptive => c_adaptive(&model, &adapt_config)?,
         Target::RustAdaptive => rust_adaptive(&model, &adapt_config)?,
-        Target::Px4 => {
+        Target::Px4 | Target::Ardupilot => {
             let frame = model_frame(
                 model.magnetometer,
                 model.magnetometer_to_body,
                 recording.as_ref().zip(a.recording.as_deref()),
             )?;
-            let frame = px4_frame(&a, fitted_on, frame)?;
+            let frame = compensation_frame(&a, fitted_on, frame)?;
             let line = linear_approximation(&model, input, span)?;
             eprint!("{}", describe(&line));
-            px4_params(&line, instance, frame.as_ref())?
-        }
-        Target::Ardupilot => {
-            let line = linear_approximation(&model, input, span)?;
-            eprint!("{}", describe(&line));
-            ardupilot_params(&line, instance)
+            if a.target == Target::Px4 {
+                px4_params(&line, instance, frame.as_ref())?
+            } else {
+                ardupilot_params(&line, instance, frame.as_ref())?
+            }
         }
         Target::ArdupilotPerMotor => {
             let Some(rec) = &recording else {

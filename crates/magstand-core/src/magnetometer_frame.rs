@@ -10,7 +10,9 @@
 //! 180 degrees the x and y coefficients have the other sign. `import` writes `R · S` (the
 //! transform it applied to the readings) in the recording's `mag_to_body` column, the same in
 //! every row; `fit` keeps it in the model file. ArduPilot adds its compensation after rotating
-//! the reading to the body frame, so its logs need none.
+//! the reading to the body frame; firmware without per-motor compensation adds it before the
+//! compass's soft-iron matrix, which its import writes there instead (later firmware needs
+//! none).
 //!
 //! # Example
 //! ```

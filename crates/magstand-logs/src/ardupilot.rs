@@ -13,6 +13,7 @@
 //! Copter 3.4 in float volts and amperes, and a fixed factor would be wrong for one of them.
 //! * `ATT` roll, pitch, yaw in degrees; `EV` 10/11 armed/disarmed, 28/18 took off/landed;
 //!   `GPS` position and GPS week time for the Earth-field model.
+use magstand_core::magnetometer_frame::SensorToBody;
 use magstand_core::magnetometer_slot::MagnetometerSlot;
 use magstand_core::{Quat, Vec3};
 
@@ -178,15 +179,22 @@ fn magnetometer(
                 .map(|k| k.unwrap_or(UT_PER_MILLIGAUSS))
         })
         .collect::<Result<_, _>>()?;
+    out.mag_to_body = compensation_frame(log, out.mag_slot, &mut out.notes);
+    // The logged field holds the applied compensation as the firmware added it: through the
+    // soft-iron matrix where it added it before the matrix.
+    let added = out
+        .mag_to_body
+        .map_or(magstand_core::Mat3::identity(), |f| f.matrix());
     let applied = applied_motor_compensation(log, s, out.mag_slot, &mut out.notes)?;
     out.mag_ut = Stream::from_pairs((0..s.len()).map(|r| {
         let mut v = Vec3::new(axes[0][r] * k[0], axes[1][r] * k[1], axes[2][r] * k[2]);
         if let Some((offset, k)) = &applied {
-            v -= Vec3::new(
-                offset[0][r] * k[0],
-                offset[1][r] * k[1],
-                offset[2][r] * k[2],
-            );
+            v -= added
+                * Vec3::new(
+                    offset[0][r] * k[0],
+                    offset[1][r] * k[1],
+                    offset[2][r] * k[2],
+                );
         }
         (s.t_s[r], v.iter().all(|x| x.is_finite()).then_some(v))
     }));
@@ -199,10 +207,10 @@ fn magnetometer(
 /// `MOfsX`..`MOfsZ` in older logs). The import takes it back out, so that the recording holds
 /// the whole disturbance: a line fitted to the rest would be exported as the whole of
 /// `COMPASS_MOT*` and replace the vehicle's compensation by the part it left. Older firmware
-/// (before per-motor compensation) added it before the soft-iron matrix (`COMPASS_DIA*`,
-/// `COMPASS_ODI*`, near identity), so there the removal is exact to that matrix's departure
-/// from identity, and the note says so. Where the log has no such fields but the parameters say a compensation was on, the
-/// recording holds only what it left, and a warning says so.
+/// (before per-motor compensation) added it before the soft-iron matrix, so there it is taken
+/// out through that matrix ([`compensation_frame`]). Where the log has no such fields but the
+/// parameters say a compensation was on, the recording holds only what it left, and a warning
+/// says so.
 #[allow(clippy::type_complexity)]
 fn applied_motor_compensation<'a>(
     log: &LogContents,
@@ -247,12 +255,60 @@ fn applied_motor_compensation<'a>(
         return Ok(None);
     }
     notes.push(format!(
-        "ArduPilot's motor compensation was applied in flight ({}, up to {largest_ut:.1} uT in {}..{}): taken back out, so the recording holds the whole disturbance and exported parameters replace the vehicle's (older firmware applied it before the soft-iron matrix, which the removal takes as identity)",
+        "ArduPilot's motor compensation was applied in flight ({}, up to {largest_ut:.1} uT in {}..{}): taken back out, so the recording holds the whole disturbance and exported parameters replace the vehicle's",
         on(),
         names[0],
         names[2]
     ));
     Ok(Some((offset, k)))
+}
+
+/// The matrix ArduPilot takes a compass's field through after adding its motor compensation,
+/// where its firmware does so: firmware without per-motor compensation (the log has no
+/// `COMPASS_PMOT_EN` parameter) adds the compensation to the field with
+/// its offsets, then applies the soft-iron matrix (`COMPASS_DIA*` on the diagonal,
+/// `COMPASS_ODI*` off it, of the compass of `slot`); later firmware adds it after the matrix,
+/// to the field the log records, and needs none. A compensation for the older firmware is then
+/// `−matrix⁻¹ · slope` (`export` writes it so), and the compensation it applied entered the
+/// logged field through the matrix.
+fn compensation_frame(
+    log: &LogContents,
+    slot: Option<MagnetometerSlot>,
+    notes: &mut Vec<String>,
+) -> Option<SensorToBody> {
+    let MagnetometerSlot::ArduPilotCompass(n) = slot? else {
+        return None;
+    };
+    if log.param("COMPASS_PMOT_EN").is_some() {
+        return None;
+    }
+    let suffix = if n == 1 { String::new() } else { n.to_string() };
+    let p = |name: &str, axis: &str| log.param(&format!("COMPASS_{name}{suffix}_{axis}"));
+    let diagonal = ["X", "Y", "Z"].map(|a| p("DIA", a).unwrap_or(0.0));
+    // The firmware takes a diagonal of zeros (never calibrated) for ones.
+    let diagonal = if diagonal == [0.0; 3] {
+        [1.0; 3]
+    } else {
+        diagonal
+    };
+    let [ox, oy, oz] = ["X", "Y", "Z"].map(|a| p("ODI", a).unwrap_or(0.0));
+    let [dx, dy, dz] = diagonal;
+    match SensorToBody::new([[dx, ox, oy], [ox, dy, oz], [oy, oz, dz]]) {
+        Ok(frame) if frame.is_identity() => None,
+        Ok(frame) => {
+            notes.push(format!(
+                "this firmware (no COMPASS_PMOT_EN) adds its motor compensation before compass {n}'s soft-iron matrix ({frame}, row by row; column `{}`): `export --to ardupilot` writes COMPASS_MOT* through it",
+                magstand_core::magnetometer_frame::COLUMN
+            ));
+            Some(frame)
+        }
+        Err(why) => {
+            notes.push(format!(
+                "warning: compass {n}'s soft-iron matrix (COMPASS_DIA{suffix}_*, COMPASS_ODI{suffix}_*) is not {why}: exported COMPASS_MOT* take it as the identity"
+            ));
+            None
+        }
+    }
 }
 
 /// The compass (1 to 3) whose parameters (`COMPASS_MOT*`, `COMPASS_EXTERN*`, ...) belong to
@@ -694,6 +750,62 @@ mod tests {
             "{:?}",
             out.notes
         );
+    }
+
+    /// Firmware without per-motor compensation (no `COMPASS_PMOT_EN`) adds its motor
+    /// compensation before the compass's soft-iron matrix: the compensation it applied entered
+    /// the logged field through that matrix and is taken out through it, and the matrix is the
+    /// frame `export` writes `COMPASS_MOT*` in. Later firmware adds it after the matrix: the
+    /// logged offsets come out as they are, and there is no frame.
+    #[test]
+    fn older_firmware_adds_its_compensation_before_the_soft_iron_matrix() {
+        let with = [
+            ("MagX", [100.0, 300.0]),
+            ("MagY", [0.0, 0.0]),
+            ("MagZ", [-50.0, -50.0]),
+            ("MOX", [0.0, 120.0]),
+            ("MOY", [0.0, -40.0]),
+            ("MOZ", [0.0, 10.0]),
+        ];
+        let matrix = [
+            ("COMPASS_DIA_X", 0.95),
+            ("COMPASS_DIA_Y", 1.05),
+            ("COMPASS_DIA_Z", 1.0),
+            ("COMPASS_ODI_X", -0.02),
+            ("COMPASS_ODI_Y", 0.01),
+            ("COMPASS_ODI_Z", 0.03),
+            ("COMPASS_MOTCT", 1.0),
+        ];
+        let m = magstand_core::Mat3::new(0.95, -0.02, 0.01, -0.02, 1.05, 0.03, 0.01, 0.03, 1.0);
+        let added = m * Vec3::new(12.0, -4.0, 1.0);
+        let log = one_compass(&with, &matrix);
+        let mut out = VehicleStreams::default();
+        magnetometer(&log, &ImportOptions::default(), &mut out).expect("imported");
+        let frame = out.mag_to_body.expect("a frame for older firmware");
+        assert!((frame.matrix() - m).abs().max() < 1e-15, "{frame}");
+        let want = Vec3::new(30.0, 0.0, -5.0) - added;
+        let got = out.mag_ut.values[1];
+        assert!((got - want).norm() < 1e-9, "{got:?} against {want:?}");
+        assert!(
+            out.notes.iter().any(|n| n.contains("soft-iron")),
+            "{:?}",
+            out.notes
+        );
+        // Firmware with per-motor compensation (the parameter is logged, on or off).
+        let mut later = matrix.to_vec();
+        later.push(("COMPASS_PMOT_EN", 0.0));
+        let log = one_compass(&with, &later);
+        let mut out = VehicleStreams::default();
+        magnetometer(&log, &ImportOptions::default(), &mut out).expect("imported");
+        assert_eq!(out.mag_to_body, None);
+        let want = Vec3::new(30.0, 0.0, -5.0) - Vec3::new(12.0, -4.0, 1.0);
+        let got = out.mag_ut.values[1];
+        assert!((got - want).norm() < 1e-9, "{got:?} against {want:?}");
+        // A diagonal never calibrated (zeros) is the firmware's identity: no frame.
+        let log = one_compass(&with, &[("COMPASS_DIA_X", 0.0), ("COMPASS_MOTCT", 1.0)]);
+        let mut out = VehicleStreams::default();
+        magnetometer(&log, &ImportOptions::default(), &mut out).expect("imported");
+        assert_eq!(out.mag_to_body, None);
     }
 
     /// The autopilot's throttle is read from `CTUN`: 4.x's `ThO` as a fraction, Copter 3.3's

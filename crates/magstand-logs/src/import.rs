@@ -265,12 +265,6 @@ pub fn import(
             magstand_core::magnetometer_slot::COLUMN
         ));
     }
-    if let Some(frame) = streams.mag_to_body.filter(|f| !f.is_identity()) {
-        report.notes.push(format!(
-            "the readings were taken to the body frame by {frame} (row by row; column `{}`): `export --to px4` writes the compensation in the sensor's own frame, where PX4 adds it",
-            magstand_core::magnetometer_frame::COLUMN
-        ));
-    }
     let rec = align(log, &streams, opts, &mut report)?;
     Ok((rec, report))
 }

@@ -23,7 +23,7 @@
 //! let input = InputSpec { kind: InputKind::Throttle, lo: 0.0, hi: 1.0, motors: 4, off_raw: 0.0 };
 //! let model = Model::new("global", input, Vec3::new(20.0, 1.0, 45.0), Structure::LocalLinear(net), None);
 //! let line = linear_approximation(&model, LineInput::Throttle, Span::ModelRange)?;
-//! let text = ardupilot_params(&line, 1);
+//! let text = ardupilot_params(&line, 1, None)?;
 //! assert!(text.contains("COMPASS_MOTCT,1"));
 //! // ArduPilot adds COMPASS_MOT x throttle, so its value is minus the fitted slope, in mG.
 //! assert!((line.slope[2] * -10.0 - 170.0).abs() < 60.0, "{:?}", line.slope);

@@ -240,7 +240,15 @@ fn magnetometer(
             out.mag_to_body = match SensorToBody::new(std::array::from_fn(|r| {
                 std::array::from_fn(|c| rows[(r, c)])
             })) {
-                Ok(frame) => Some(frame),
+                Ok(frame) => {
+                    if !frame.is_identity() {
+                        out.notes.push(format!(
+                            "the readings were taken to the body frame by {frame} (row by row; column `{}`): `export --to px4` writes the compensation in the sensor's own frame, where PX4 adds it",
+                            magstand_core::magnetometer_frame::COLUMN
+                        ));
+                    }
+                    Some(frame)
+                }
                 Err(why) => {
                     out.notes.push(format!(
                         "warning: CAL_MAG{k}'s rotation and scale are not {why}: `export --to px4` cannot write a compensation for this sensor"

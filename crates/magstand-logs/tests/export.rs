@@ -53,11 +53,14 @@ fn a_linear_model_exports_its_own_slope_with_the_autopilots_units_and_signs() {
         line.worst_heading_deg < 1e-9 && line.uncompensated_heading_deg > 10.0,
         "{line:?}"
     );
-    let ap = ardupilot_params(&line, 1);
+    let ap = ardupilot_params(&line, 1, None).unwrap();
     assert_eq!(value(&ap, "COMPASS_MOTCT"), 1.0);
     // ArduPilot: field + COMPASS_MOT x throttle, in mG: -k x 10.
     assert_eq!(value(&ap, "COMPASS_MOT_Z"), 160.0);
-    assert_eq!(value(&ardupilot_params(&line, 2), "COMPASS_MOT2_X"), -40.0);
+    assert_eq!(
+        value(&ardupilot_params(&line, 2, None).unwrap(), "COMPASS_MOT2_X"),
+        -40.0
+    );
     let px4 = px4_params(&line, 0, None).unwrap();
     assert_eq!(value(&px4, "CAL_MAG_COMP_TYP"), 1.0);
     // PX4: mag + coefficient x throttle, in gauss: -k x 0.01.
@@ -81,8 +84,13 @@ fn a_linear_model_exports_its_own_slope_with_the_autopilots_units_and_signs() {
         2.0
     );
     assert!((value(&px4_params(&line, 1, None).unwrap(), "CAL_MAG1_XCOMP") + 2.5).abs() < 1e-9);
-    assert_eq!(value(&ardupilot_params(&line, 1), "COMPASS_MOTCT"), 2.0);
-    assert!((value(&ardupilot_params(&line, 1), "COMPASS_MOT_X") + 2.5).abs() < 1e-9);
+    assert_eq!(
+        value(&ardupilot_params(&line, 1, None).unwrap(), "COMPASS_MOTCT"),
+        2.0
+    );
+    assert!(
+        (value(&ardupilot_params(&line, 1, None).unwrap(), "COMPASS_MOT_X") + 2.5).abs() < 1e-9
+    );
 }
 
 /// The paper's tables with a noise model growing with throttle.
@@ -310,7 +318,10 @@ fn a_throttle_model_exports_a_line_per_ampere_over_a_recordings_rows() {
     for a in 0..3 {
         assert!((line.slope[a] - k[a] / 50.0).abs() < 1e-9, "{line:?}");
     }
-    assert_eq!(value(&ardupilot_params(&line, 1), "COMPASS_MOTCT"), 2.0);
+    assert_eq!(
+        value(&ardupilot_params(&line, 1, None).unwrap(), "COMPASS_MOTCT"),
+        2.0
+    );
     // Without a recording, a line per ampere of a throttle model is refused with the way out.
     let err = linear_approximation(&model, LineInput::Current, Span::ModelRange)
         .unwrap_err()

@@ -79,7 +79,9 @@ proptest! {
                 if let Ok(text) = px4_params(&line, 0, model.magnetometer_to_body.as_ref()) {
                     finite_text("PX4 parameters", &text);
                 }
-                finite_text("ArduPilot parameters", &ardupilot_params(&line, 0));
+                if let Ok(text) = ardupilot_params(&line, 0, model.magnetometer_to_body.as_ref()) {
+                    finite_text("ArduPilot parameters", &text);
+                }
             }
             if let Ok(h) = c_header(&model) {
                 finite_text("the C header", &h);

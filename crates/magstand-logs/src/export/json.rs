@@ -14,8 +14,10 @@
 //!                                                   // the keys are named as compass 1's)
 //!             "magnetometer_to_body": [[..], [..], [..]]}, // absent where the model does not
 //!                                                   // say: the matrix that took the sensor's
-//!                                                   // readings to the body frame; the "px4"
-//!                                                   // coefficients are mapped back through it
+//!                                                   // readings to the body frame (PX4), or the
+//!                                                   // soft-iron matrix older ArduPilot adds its
+//!                                                   // compensation before: the coefficients of
+//!                                                   // that autopilot are mapped back through it
 //!   "table": {"input": [...],                       // 201 raw inputs, 0 .. top of range
 //!             "dist_ut": [[...], [...], [...]],     // disturbance per axis (every motor at
 //!                                                   // the same command for a per-motor model)
@@ -36,7 +38,7 @@ use std::collections::BTreeMap;
 use magstand_ident::{InputKind, Model};
 
 use super::per_motor::PerMotorFit;
-use super::{LineInput, LinearFit, Samples, range_samples};
+use super::{Autopilot, LineInput, LinearFit, Samples, range_samples};
 use crate::LogsError;
 
 /// Format name of the document.
@@ -111,12 +113,20 @@ pub fn export_json(
             .collect();
         std::array::from_fn(|a| column(&v, a))
     });
-    // PX4 adds its compensation in the sensor's own frame (see `px4_params`).
-    let px4 = match model.magnetometer_to_body.filter(|f| !f.is_identity()) {
-        Some(f) => line.in_sensor_frame(&f)?.px4(),
-        None => line.px4(),
+    // Each autopilot's coefficients in the frame it adds them in (see `px4_params`).
+    let in_frame = |autopilot: Autopilot| -> Result<LinearFit, LogsError> {
+        match autopilot
+            .compensation_frame(model.magnetometer, model.magnetometer_to_body)
+            .filter(|f| !f.is_identity())
+        {
+            Some(f) => line.in_sensor_frame(&f),
+            None => Ok(line.clone()),
+        }
     };
-    let ap = line.ardupilot();
+    let (px4, ap) = (
+        in_frame(Autopilot::Px4)?.px4(),
+        in_frame(Autopilot::ArduPilot)?.ardupilot(),
+    );
     let doc = Document {
         format: FORMAT,
         version: VERSION,

@@ -13,15 +13,17 @@
 //! Units: PX4 `CAL_MAGn_{X,Y,Z}COMP` in gauss per unit throttle (`CAL_MAG_COMP_TYP` 1) or
 //! gauss per kiloampere (`CAL_MAG_COMP_TYP` 2); ArduPilot `COMPASS_MOT_{X,Y,Z}` in milligauss
 //! per unit throttle (`COMPASS_MOTCT` 1) or per ampere (`COMPASS_MOTCT` 2). 1 µT = 10 mG =
-//! 0.01 G. ArduPilot adds its correction after rotating the reading to the body frame; PX4
-//! adds it to the reading as the driver published it, before its calibration's rotation and
-//! scale, so a PX4 line is written in that frame where the model names it
-//! ([`magstand_core::magnetometer_frame`]).
+//! 0.01 G. ArduPilot adds its correction after rotating the reading to the body frame (firmware
+//! without per-motor compensation before the compass's soft-iron matrix); PX4 adds it to the
+//! reading as the driver published it, before its calibration's rotation and scale. Where the
+//! model names that frame, each autopilot's line is written in it
+//! ([`magstand_core::magnetometer_frame`], [`Autopilot::compensation_frame`]).
 //!
 //! The other targets: [`per_motor`] (ArduPilot's `COMPASS_PMOT*`), [`firmware`] (the full
 //! model as a C header or a `no_std` Rust module) and [`json`] (a table and every figure, for
 //! other tools).
 use magstand_core::magnetometer_frame::SensorToBody;
+use magstand_core::magnetometer_slot::MagnetometerSlot;
 use magstand_core::{AXES, Recording, Vec3};
 use magstand_ident::compatibility::ardupilot_interference_pct;
 use magstand_ident::metrics::{heading_deg, heading_difference_deg};
@@ -362,6 +364,22 @@ pub enum Autopilot {
 }
 
 impl Autopilot {
+    /// The frame this autopilot adds a magnetometer's compensation in, as the transform to
+    /// the body frame of a model fitted on it: `frame` (the model's `magnetometer_to_body`)
+    /// where the model's magnetometer `slot` is this autopilot's or is not named; None (the
+    /// body frame) where it is the other autopilot's, whose frame says nothing of this one's.
+    pub fn compensation_frame(
+        self,
+        slot: Option<MagnetometerSlot>,
+        frame: Option<SensorToBody>,
+    ) -> Option<SensorToBody> {
+        match (self, slot) {
+            (Autopilot::Px4, Some(MagnetometerSlot::ArduPilotCompass(_)))
+            | (Autopilot::ArduPilot, Some(MagnetometerSlot::Px4CalMag(_))) => None,
+            _ => frame,
+        }
+    }
+
     /// The magnetometer instances the autopilot numbers.
     pub fn instances(self) -> std::ops::RangeInclusive<usize> {
         match self {
@@ -470,15 +488,35 @@ pub fn px4_params(
 
 /// ArduPilot parameters as a `.param` file (`NAME,VALUE` lines) for compass `instance` (1, 2
 /// or 3).
-pub fn ardupilot_params(line: &LinearFit, instance: usize) -> String {
+///
+/// `frame` is the compass's soft-iron matrix where the firmware adds its compensation before
+/// it (firmware without per-motor compensation; a model's `magnetometer_to_body` of an
+/// ArduPilot log): the coefficients are then `−frame⁻¹ · slope`. Later firmware adds it to the
+/// field the log records, and takes minus the slope.
+pub fn ardupilot_params(
+    line: &LinearFit,
+    instance: usize,
+    frame: Option<&SensorToBody>,
+) -> Result<String, LogsError> {
     let (power, unit) = match line.input {
         LineInput::Current => ("current", "mG per A"),
         LineInput::Throttle => ("throttle", "mG per unit throttle"),
     };
-    let [(kind_name, kind), coefficients @ ..] = Autopilot::ArduPilot.parameters(line, instance);
+    let (line, frame_note) = match frame.filter(|f| !f.is_identity()) {
+        Some(f) => (
+            line.in_sensor_frame(f)?,
+            format!(
+                "# Mapped back through the compass's soft-iron matrix ({f}, row by row): this\n\
+                 # firmware adds its compensation before that matrix.\n"
+            ),
+        ),
+        None => (line.clone(), String::new()),
+    };
+    let [(kind_name, kind), coefficients @ ..] = Autopilot::ArduPilot.parameters(&line, instance);
     let mut out = format!(
         "# ArduPilot compassmot parameters exported by magstand {}; {unit}, minus the fitted slope\n\
          # (ArduPilot corrects with field + COMPASS_MOT x {power}).\n\
+         {frame_note}\
          # COMPASS_MOTCT is shared by every compass: another one's COMPASS_MOT* on the vehicle\n\
          # must be in these units (fitted on the same input) or 0.\n\
          {kind_name},{kind}\n",
@@ -487,7 +525,7 @@ pub fn ardupilot_params(line: &LinearFit, instance: usize) -> String {
     for (name, value) in coefficients {
         out += &format!("{name},{value:.3}\n");
     }
-    out
+    Ok(out)
 }
 
 /// One line per axis of what the line leaves, and the autopilots' own figures, for the

@@ -8,6 +8,11 @@
 //! every coefficient off by it. `import` now writes the transform in `mag_to_body`, `fit`
 //! keeps it in the model file, and `export --to px4` maps the slopes back through it; a model
 //! of a PX4 sensor without it is refused.
+//!
+//! The same held for ArduPilot firmware without per-motor compensation (log171, Copter 3.3),
+//! which adds its compensation before the compass's soft-iron matrix: `COMPASS_MOT2_*` from
+//! log171 were off by that matrix (its diagonal 0.95, 1.05, 1.01). Its import now writes the
+//! matrix as the frame, and takes the compensation the vehicle applied out through it.
 mod common;
 use common::magstand;
 
@@ -233,4 +238,84 @@ fn a_real_px4_logs_coefficients_map_back_to_its_body_frame_slopes() {
         !frame.is_identity(),
         "the log's calibration has a scale: {frame}"
     );
+}
+
+/// ArduPilot Copter 3.3 (log171, no per-motor compensation) adds its compensation before the
+/// compass's soft-iron matrix: the import writes compass 2's matrix as `mag_to_body`, and the
+/// exported `COMPASS_MOT2_*` taken through it give minus the body-frame slopes (in mG).
+#[test]
+fn older_ardupilots_coefficients_are_written_before_its_soft_iron_matrix() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = |s: &str| dir.path().join(s).to_str().unwrap().to_string();
+    let log = common::test_data("real-logs", "ardupilot-log171-quad.bin");
+    let r = magstand(&[
+        "import",
+        "--dataflash",
+        &log,
+        "--mag",
+        "1",
+        "--to-s",
+        "238",
+        "--out",
+        &p("r.csv"),
+    ]);
+    assert!(r.ok, "{}", r.stderr);
+    assert!(r.stderr.contains("soft-iron"), "{}", r.stderr);
+    let rec = magstand_core::recording_csv::read(p("r.csv")).unwrap();
+    let frame = SensorToBody::of_recording(&rec, p("r.csv").as_ref())
+        .unwrap()
+        .expect("Copter 3.3's import writes mag_to_body");
+    // COMPASS_DIA2_* and COMPASS_ODI2_* as log171 holds them (single precision).
+    let (dx, dy, dz) = (0.950_695_63_f32, 1.050_159_f32, 1.006_840_7_f32);
+    let (ox, oy, oz) = (-0.017_186_347_f32, 0.017_151_59_f32, -0.011_333_506_f32);
+    let [dx, dy, dz, ox, oy, oz] = [dx, dy, dz, ox, oy, oz].map(f64::from);
+    let want = magstand_core::Mat3::new(dx, ox, oy, ox, dy, oz, oy, oz, dz);
+    assert!(
+        (frame.matrix() - want).abs().max() == 0.0,
+        "mag_to_body {frame}, the log's compass 2 matrix {want}"
+    );
+    let r = magstand(&[
+        "fit",
+        "--recording",
+        &p("r.csv"),
+        "--earth",
+        "fit",
+        "--model-out",
+        &p("m.json"),
+    ]);
+    assert!(r.ok, "{}", r.stderr);
+    let r = magstand(&["export", "--model", &p("m.json"), "--to", "json"]);
+    assert!(r.ok, "{}", r.stderr);
+    let doc: serde_json::Value = serde_json::from_str(&r.stdout).unwrap();
+    let get = |v: &serde_json::Value| v.as_f64().unwrap();
+    let slope_ut = Vec3::from_fn(|a, _| get(&doc["linear"]["slope_ut"][a]));
+    let ap = &doc["linear"]["ardupilot"];
+    let mot = Vec3::new(
+        get(&ap["COMPASS_MOT_X"]),
+        get(&ap["COMPASS_MOT_Y"]),
+        get(&ap["COMPASS_MOT_Z"]),
+    );
+    let back = frame.matrix() * mot;
+    // mG per unit throttle: minus ten times the slope in µT.
+    assert!(
+        (back + slope_ut * 10.0).abs().max() < 1e-9,
+        "M · C = {back}, slopes {slope_ut} µT"
+    );
+    // The parameter file writes the same values, rounded, for compass 2.
+    let r = magstand(&["export", "--model", &p("m.json"), "--to", "ardupilot"]);
+    assert!(r.ok, "{}", r.stderr);
+    for (name, v) in ["COMPASS_MOT2_X", "COMPASS_MOT2_Y", "COMPASS_MOT2_Z"]
+        .iter()
+        .zip(mot.iter())
+    {
+        let written: f64 = r
+            .stdout
+            .lines()
+            .find_map(|l| l.strip_prefix(&format!("{name},")))
+            .unwrap_or_else(|| panic!("{name}: {}", r.stdout))
+            .parse()
+            .unwrap();
+        assert!((written - v).abs() < 6e-4, "{name}: {written} against {v}");
+    }
+    assert!(r.stdout.contains("soft-iron"), "{}", r.stdout);
 }
