@@ -30,6 +30,37 @@ fn param(text: &str, name: &str) -> f64 {
         .unwrap_or_else(|| panic!("no {name} in:\n{text}"))
 }
 
+/// The frame `import` wrote in recording `rec`, and the JSON export of the model that
+/// `fit --earth fit` makes of the recording (written to `model`).
+fn frame_and_export(rec: &str, model: &str) -> (SensorToBody, serde_json::Value) {
+    let recording = magstand_core::recording_csv::read(rec).unwrap();
+    let frame = SensorToBody::of_recording(&recording, rec.as_ref())
+        .unwrap()
+        .unwrap_or_else(|| panic!("{rec}: the import wrote no mag_to_body"));
+    let r = magstand(&[
+        "fit",
+        "--recording",
+        rec,
+        "--earth",
+        "fit",
+        "--model-out",
+        model,
+    ]);
+    assert!(r.ok, "{}", r.stderr);
+    let r = magstand(&["export", "--model", model, "--to", "json"]);
+    assert!(r.ok, "{}", r.stderr);
+    (frame, serde_json::from_str(&r.stdout).unwrap())
+}
+
+/// The numbers of `keys` in the JSON object `block` as a vector.
+fn vector(block: &serde_json::Value, keys: [&str; 3]) -> Vec3 {
+    Vec3::from_fn(|a, _| {
+        block[keys[a]]
+            .as_f64()
+            .unwrap_or_else(|| panic!("no number {} in {block}", keys[a]))
+    })
+}
+
 /// A stand recording whose magnetometer, in its own frame, is disturbed by `raw_g_per_thr`
 /// gauss per unit throttle, read in the body frame through `frame`: a stair of 8 steps at
 /// 50 Hz, with a small deterministic noise.
@@ -201,30 +232,9 @@ fn a_real_px4_logs_coefficients_map_back_to_its_body_frame_slopes() {
     let log = common::test_data("real-logs", "px4-fmuv6c-quad-local.ulg");
     let r = magstand(&["import", "--ulog", &log, "--mag", "1", "--out", &p("r.csv")]);
     assert!(r.ok, "{}", r.stderr);
-    let rec = magstand_core::recording_csv::read(p("r.csv")).unwrap();
-    let frame = SensorToBody::of_recording(&rec, p("r.csv").as_ref())
-        .unwrap()
-        .expect("a PX4 import writes mag_to_body");
-    let r = magstand(&[
-        "fit",
-        "--recording",
-        &p("r.csv"),
-        "--earth",
-        "fit",
-        "--model-out",
-        &p("m.json"),
-    ]);
-    assert!(r.ok, "{}", r.stderr);
-    let r = magstand(&["export", "--model", &p("m.json"), "--to", "json"]);
-    assert!(r.ok, "{}", r.stderr);
-    let doc: serde_json::Value = serde_json::from_str(&r.stdout).unwrap();
-    let get = |v: &serde_json::Value| v.as_f64().unwrap();
-    let slope_ut = Vec3::from_fn(|a, _| get(&doc["linear"]["slope_ut"][a]));
-    let px4 = Vec3::new(
-        get(&doc["linear"]["px4"]["XCOMP"]),
-        get(&doc["linear"]["px4"]["YCOMP"]),
-        get(&doc["linear"]["px4"]["ZCOMP"]),
-    );
+    let (frame, doc) = frame_and_export(&p("r.csv"), &p("m.json"));
+    let slope_ut = Vec3::from_fn(|a, _| doc["linear"]["slope_ut"][a].as_f64().unwrap());
+    let px4 = vector(&doc["linear"]["px4"], ["XCOMP", "YCOMP", "ZCOMP"]);
     let rows = doc["model"]["magnetometer_to_body"].clone();
     let named: [[f64; 3]; 3] = serde_json::from_value(rows).unwrap();
     assert_eq!(named, frame.rows(), "the model's frame is the recording's");
@@ -261,10 +271,8 @@ fn older_ardupilots_coefficients_are_written_before_its_soft_iron_matrix() {
     ]);
     assert!(r.ok, "{}", r.stderr);
     assert!(r.stderr.contains("soft-iron"), "{}", r.stderr);
-    let rec = magstand_core::recording_csv::read(p("r.csv")).unwrap();
-    let frame = SensorToBody::of_recording(&rec, p("r.csv").as_ref())
-        .unwrap()
-        .expect("Copter 3.3's import writes mag_to_body");
+    let (frame, doc) = frame_and_export(&p("r.csv"), &p("m.json"));
+
     // COMPASS_DIA2_* and COMPASS_ODI2_* as log171 holds them (single precision).
     let (dx, dy, dz) = (0.950_695_63_f32, 1.050_159_f32, 1.006_840_7_f32);
     let (ox, oy, oz) = (-0.017_186_347_f32, 0.017_151_59_f32, -0.011_333_506_f32);
@@ -274,26 +282,10 @@ fn older_ardupilots_coefficients_are_written_before_its_soft_iron_matrix() {
         (frame.matrix() - want).abs().max() == 0.0,
         "mag_to_body {frame}, the log's compass 2 matrix {want}"
     );
-    let r = magstand(&[
-        "fit",
-        "--recording",
-        &p("r.csv"),
-        "--earth",
-        "fit",
-        "--model-out",
-        &p("m.json"),
-    ]);
-    assert!(r.ok, "{}", r.stderr);
-    let r = magstand(&["export", "--model", &p("m.json"), "--to", "json"]);
-    assert!(r.ok, "{}", r.stderr);
-    let doc: serde_json::Value = serde_json::from_str(&r.stdout).unwrap();
-    let get = |v: &serde_json::Value| v.as_f64().unwrap();
-    let slope_ut = Vec3::from_fn(|a, _| get(&doc["linear"]["slope_ut"][a]));
-    let ap = &doc["linear"]["ardupilot"];
-    let mot = Vec3::new(
-        get(&ap["COMPASS_MOT_X"]),
-        get(&ap["COMPASS_MOT_Y"]),
-        get(&ap["COMPASS_MOT_Z"]),
+    let slope_ut = Vec3::from_fn(|a, _| doc["linear"]["slope_ut"][a].as_f64().unwrap());
+    let mot = vector(
+        &doc["linear"]["ardupilot"],
+        ["COMPASS_MOT_X", "COMPASS_MOT_Y", "COMPASS_MOT_Z"],
     );
     let back = frame.matrix() * mot;
     // mG per unit throttle: minus ten times the slope in µT.
