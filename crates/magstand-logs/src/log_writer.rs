@@ -41,8 +41,8 @@ impl Default for LogWriteOptions {
 /// published it to the body frame: `R · S · (raw − offset)`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Px4MagCalibration {
-    /// `CAL_MAG0_ROT`: a PX4 rotation from 0 to 15 (a yaw in steps of 45 degrees, after a
-    /// roll of 180 from 8 on), or -1 for an internal sensor, which follows `board_rotation`.
+    /// `CAL_MAG0_ROT`: a PX4 rotation from 0 to 40 (PX4's `Rotation` enum), or -1 for an
+    /// internal sensor, which follows `board_rotation`.
     pub rotation: i32,
     /// `SENS_BOARD_ROT`, the board's rotation (the same codes).
     pub board_rotation: i32,
@@ -63,7 +63,7 @@ impl Px4MagCalibration {
             c => c,
         };
         let rotation = crate::px4::px4_rotation(code.into())
-            .ok_or_else(|| format!("a PX4 rotation from 0 to 15; found {code}"))?;
+            .ok_or_else(|| format!("a PX4 rotation from 0 to 40; found {code}"))?;
         let f = |v: f64| v as f32 as f64;
         let ([xs, ys, zs], [xo, yo, zo]) = (self.scale.map(f), self.off_diagonal.map(f));
         let scale = magstand_core::Mat3::new(xs, xo, yo, xo, ys, zo, yo, zo, zs);

@@ -29,18 +29,60 @@ fn missing(log: &LogContents, what: &str, hint: &str) -> LogsError {
     }
 }
 
-/// A PX4 `Rotation` enum value as a rotation from the sensor to the body frame, for the values
-/// that are a yaw in steps of 45 degrees, optionally after a roll of 180 degrees (0..=15).
+/// PX4's `Rotation` enum (`src/lib/conversion/rotation.h`, the MAVLink `MAV_SENSOR_ORIENTATION`
+/// values): each code's roll, pitch and yaw in degrees, applied as PX4's `Dcmf(Eulerf(..))`
+/// does (roll, then pitch, then yaw, about the body's fixed axes).
+const PX4_ROTATIONS_DEG: [[f64; 3]; 41] = [
+    [0.0, 0.0, 0.0],
+    [0.0, 0.0, 45.0],
+    [0.0, 0.0, 90.0],
+    [0.0, 0.0, 135.0],
+    [0.0, 0.0, 180.0],
+    [0.0, 0.0, 225.0],
+    [0.0, 0.0, 270.0],
+    [0.0, 0.0, 315.0],
+    [180.0, 0.0, 0.0],
+    [180.0, 0.0, 45.0],
+    [180.0, 0.0, 90.0],
+    [180.0, 0.0, 135.0],
+    [0.0, 180.0, 0.0],
+    [180.0, 0.0, 225.0],
+    [180.0, 0.0, 270.0],
+    [180.0, 0.0, 315.0],
+    [90.0, 0.0, 0.0],
+    [90.0, 0.0, 45.0],
+    [90.0, 0.0, 90.0],
+    [90.0, 0.0, 135.0],
+    [270.0, 0.0, 0.0],
+    [270.0, 0.0, 45.0],
+    [270.0, 0.0, 90.0],
+    [270.0, 0.0, 135.0],
+    [0.0, 90.0, 0.0],
+    [0.0, 270.0, 0.0],
+    [0.0, 180.0, 90.0],
+    [0.0, 180.0, 270.0],
+    [90.0, 90.0, 0.0],
+    [180.0, 90.0, 0.0],
+    [270.0, 90.0, 0.0],
+    [90.0, 180.0, 0.0],
+    [270.0, 180.0, 0.0],
+    [90.0, 270.0, 0.0],
+    [180.0, 270.0, 0.0],
+    [270.0, 270.0, 0.0],
+    [90.0, 180.0, 90.0],
+    [90.0, 0.0, 270.0],
+    [90.0, 68.0, 293.0],
+    [0.0, 315.0, 0.0],
+    [90.0, 315.0, 0.0],
+];
+
+/// A PX4 `Rotation` enum value (0 to 40) as a rotation from the sensor to the body frame.
 pub(crate) fn px4_rotation(code: i64) -> Option<Quat> {
-    let (roll, yaw_steps) = match code {
-        0..=7 => (0.0, code),
-        8..=15 => (std::f64::consts::PI, code - 8),
-        _ => return None,
-    };
+    let [roll, pitch, yaw] = *PX4_ROTATIONS_DEG.get(usize::try_from(code).ok()?)?;
     Some(Quat::from_euler_angles(
-        roll,
-        0.0,
-        (45.0 * yaw_steps as f64).to_radians(),
+        roll.to_radians(),
+        pitch.to_radians(),
+        yaw.to_radians(),
     ))
 }
 
@@ -227,7 +269,7 @@ fn magnetometer(
             };
             let rot = px4_rotation(code).unwrap_or_else(|| {
                 out.notes.push(format!(
-                    "warning: rotation {code} of CAL_MAG{k} is not one magstand applies (0..15); the field stays in the sensor frame"
+                    "warning: rotation {code} of CAL_MAG{k} is not one of PX4's (0 to 40); the field stays in the sensor frame"
                 ));
                 Quat::identity()
             });
@@ -533,4 +575,59 @@ fn position(log: &LogContents) -> Option<Position> {
         });
     }
     None
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every PX4 rotation is a proper rotation; codes 0 to 15 are a yaw in steps of 45 degrees
+    /// after (from 8 on) a roll of 180, and the others turn the axes as their names say.
+    #[test]
+    fn px4_rotations_turn_the_axes_as_their_names_say() {
+        let (x, y, z) = (Vec3::x(), Vec3::y(), Vec3::z());
+        for code in 0..=15i64 {
+            let (roll, steps) = if code < 8 {
+                (0.0, code)
+            } else {
+                (180.0f64, code - 8)
+            };
+            let want =
+                Quat::from_euler_angles(roll.to_radians(), 0.0, (45.0 * steps as f64).to_radians());
+            let got = px4_rotation(code).unwrap();
+            assert!(
+                got.angle_to(&want) < 1e-12,
+                "code {code}: {got:?} against {want:?}"
+            );
+        }
+        let turns = [
+            (16, y, z),  // ROLL_90: y to z
+            (20, y, -z), // ROLL_270
+            (24, z, x),  // PITCH_90: z to x
+            (25, z, -x), // PITCH_270
+            (26, x, -y), // PITCH_180_YAW_90: x to -x, then -x to -y
+        ];
+        for (code, from, to) in turns {
+            let got = px4_rotation(code).unwrap() * from;
+            assert!(
+                (got - to).norm() < 1e-12,
+                "code {code}: {from} goes to {got}, not {to}"
+            );
+        }
+        for code in 0..=40 {
+            let m = px4_rotation(code)
+                .unwrap()
+                .to_rotation_matrix()
+                .into_inner();
+            assert!(
+                (m * m.transpose() - magstand_core::Mat3::identity())
+                    .abs()
+                    .max()
+                    < 1e-12
+                    && (m.determinant() - 1.0).abs() < 1e-12,
+                "code {code}: {m}"
+            );
+        }
+        assert!(px4_rotation(41).is_none() && px4_rotation(-2).is_none());
+    }
 }

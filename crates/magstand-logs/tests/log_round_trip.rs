@@ -134,7 +134,8 @@ fn a_landed_stand_is_a_ground_segment_and_selection_keeps_it() {
 }
 
 /// A PX4 calibration that turns and scales the sensor (a board mounted turned by 135 degrees,
-/// an external sensor upside down and turned by 90) is taken back out by the import, and the
+/// an external sensor upside down and turned by 90, one pitched up by 90, a board at PX4's
+/// one odd angle) is taken back out by the import, and the
 /// transform it applied is written in `mag_to_body`, where `export` finds the frame PX4 adds
 /// its compensation in.
 #[test]
@@ -142,7 +143,13 @@ fn a_turned_and_scaled_px4_calibration_is_taken_out_and_its_transform_kept() {
     use magstand_core::magnetometer_frame::SensorToBody;
     use magstand_logs::log_writer::Px4MagCalibration;
     let rec = run();
-    for (rotation, board_rotation, turned) in [(-1, 3, 135.0f64), (10, 0, 90.0)] {
+    // (CAL_MAG0_ROT, SENS_BOARD_ROT, the roll, pitch and yaw PX4's table gives the code used).
+    for (rotation, board_rotation, [roll, pitch, yaw]) in [
+        (-1, 3, [0.0f64, 0.0, 135.0]),
+        (10, 0, [180.0, 0.0, 90.0]),
+        (24, 0, [0.0, 90.0, 0.0]),
+        (-1, 38, [90.0, 68.0, 293.0]),
+    ] {
         let cal = Px4MagCalibration {
             rotation,
             board_rotation,
@@ -166,16 +173,14 @@ fn a_turned_and_scaled_px4_calibration_is_taken_out_and_its_transform_kept() {
         let frame = SensorToBody::of_recording(&back, Path::new("turned.csv"))
             .unwrap()
             .unwrap_or_else(|| panic!("{label}: no mag_to_body"));
-        // The expected transform, worked out here from the rotation's definition: a yaw of
-        // `turned` degrees after (for codes 8 to 15) a roll of 180.
-        let (c, s) = (turned.to_radians().cos(), turned.to_radians().sin());
-        let yaw = magstand_core::Mat3::new(c, -s, 0.0, s, c, 0.0, 0.0, 0.0, 1.0);
-        let roll = match rotation {
-            8..=15 => {
-                magstand_core::Mat3::from_diagonal(&magstand_core::Vec3::new(1.0, -1.0, -1.0))
-            }
-            _ => magstand_core::Mat3::identity(),
-        };
+        // The expected transform, worked out here from the angles: about x by the roll, then
+        // about y by the pitch, then about z by the yaw.
+        let (cr, sr) = (roll.to_radians().cos(), roll.to_radians().sin());
+        let (cp, sp) = (pitch.to_radians().cos(), pitch.to_radians().sin());
+        let (cy, sy) = (yaw.to_radians().cos(), yaw.to_radians().sin());
+        let rx = magstand_core::Mat3::new(1.0, 0.0, 0.0, 0.0, cr, -sr, 0.0, sr, cr);
+        let ry = magstand_core::Mat3::new(cp, 0.0, sp, 0.0, 1.0, 0.0, -sp, 0.0, cp);
+        let rz = magstand_core::Mat3::new(cy, -sy, 0.0, sy, cy, 0.0, 0.0, 0.0, 1.0);
         let f = |v: f64| v as f32 as f64;
         let scale = magstand_core::Mat3::new(
             f(1.08),
@@ -188,7 +193,7 @@ fn a_turned_and_scaled_px4_calibration_is_taken_out_and_its_transform_kept() {
             f(0.01),
             f(1.02),
         );
-        let expected = yaw * roll * scale;
+        let expected = rz * ry * rx * scale;
         let d = (frame.matrix() - expected).abs().max();
         assert!(
             d < 1e-12,
