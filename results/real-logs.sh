@@ -142,17 +142,30 @@ What the tables say:
   sensor offset stands in for the motors-off reading, because their input comes down near zero
   (0.3-0.6 A, throttle 0.002). The UAVCAN log never goes below 27 A, so the offset would be an
   extrapolation, and the fit refuses. On those three flights magstand's model is better than
-  PX4's line on held-out blocks on x (5.55 against 6.01, 5.95 against 6.42, 0.84 against 1.08
+  PX4's line on held-out blocks on x (5.56 against 6.01, 5.95 against 6.42, 0.84 against 1.08
   uT) and within the noise on y and z; with 1 Hz rows and 90 degrees of heading or less the
   fitted Earth fields are uncertain, and `magstand fit` says so and suggests `--earth` with the World Magnetic Model.
-- compassmot's figures are withheld on every PX4 log and on the ArduPilot current fits:
-  ArduPilot's running average needs about 300 updates to forget its start, and these logs give
-  it 52 to 116 (the 10 Hz ArduPilot log with the throttle as input is the exception).
+- compassmot's figures are withheld on every PX4 log: ArduPilot's running average needs about
+  300 updates to forget its start, and these logs give it 52 to 116; the 10 Hz ArduPilot log
+  gives it enough. (Before 2026-12-06 this table also showed them withheld on the ArduPilot
+  current fits: the script read a withheld interference as all of compassmot's figures.)
   Interference at the top of the range is withheld when fewer than 10 rows lie within 10 % of
-  it. Where both are given, compassmot would report 22-24 % on the ArduPilot log's internal
-  compass, inside ArduPilot's "fine" band, so its own check would not have flagged it.
+  it.
+- Since 2026-12-06 the autopilots' throttle lines run on the autopilot's own throttle where
+  the log has it (ArduPilot's `CTUN`, PX4's thrust setpoint, written by `import` as
+  `autopilot_throttle`): the thrust demand their compensation multiplies. On log171 (thrust
+  curve `MOT_THST_EXPO` 0.8) the motors ran at 0.53 of their PWM range at a demand of 0.39.
+  There the lines' R² moves by 0.02 and the top of the demand (0.62) has 9 rows near it, so
+  compassmot's interference is withheld; on the motor outputs it gave 22 %, inside
+  ArduPilot's "fine" band, so its own check would not have flagged the 25 % magstand's model
+  gives. The held-out columns of the fits above are magstand's `--method px4` and
+  `--method ardupilot` fits, lines through the origin in the motor outputs.
 - The 6C's fitted Earth field is implausible (3 uT horizontal) and its delay sits at the 0.5 s
   search limit: at 1 Hz for 92 s there is nothing reliable to fit, and the warnings say so.
+- Since 2026-12-07 PX4's internal magnetometers are turned by the board's trim as well
+  (`SENS_BOARD_{X,Y,Z}_OFF`, which PX4 applies after `SENS_BOARD_ROT`: -0.82 and 0.46 degrees on
+  the 6C, -0.18 and 0.28 on the octocopter, -3.38 and -2.45 on the hexa); the import had left
+  it out. The 6C's and the octocopter's figures moved by a few hundredths.
 NOTES
 mv "$out" results/real-logs.md
 echo "wrote results/real-logs.md"

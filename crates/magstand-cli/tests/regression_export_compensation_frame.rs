@@ -103,6 +103,7 @@ fn a_px4_compensation_is_written_in_the_frame_px4_adds_it_in() {
     let cal = Px4MagCalibration {
         rotation: -1,
         board_rotation: 4,
+        board_trim_deg: [0.0; 3],
         offset_g: [0.08, -0.11, 0.2],
         scale: [1.1, 0.92, 1.04],
         off_diagonal: [0.02, -0.015, 0.01],

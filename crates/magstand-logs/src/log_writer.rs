@@ -46,6 +46,9 @@ pub struct Px4MagCalibration {
     pub rotation: i32,
     /// `SENS_BOARD_ROT`, the board's rotation (the same codes).
     pub board_rotation: i32,
+    /// `SENS_BOARD_{X,Y,Z}_OFF`, the board's fine trim after its rotation, degrees (roll,
+    /// pitch, yaw), which an internal sensor turns with.
+    pub board_trim_deg: [f64; 3],
     /// `CAL_MAG0_{X,Y,Z}OFF`, gauss.
     pub offset_g: [f64; 3],
     /// `CAL_MAG0_{X,Y,Z}SCALE`, the scale matrix's diagonal.
@@ -64,6 +67,13 @@ impl Px4MagCalibration {
         };
         let rotation = crate::px4::px4_rotation(code.into())
             .ok_or_else(|| format!("a PX4 rotation from 0 to 40; found {code}"))?;
+        let rotation = match self.rotation {
+            -1 => {
+                let [x, y, z] = self.board_trim_deg.map(|d| (d as f32 as f64).to_radians());
+                magstand_core::Quat::from_euler_angles(x, y, z) * rotation
+            }
+            _ => rotation,
+        };
         let f = |v: f64| v as f32 as f64;
         let ([xs, ys, zs], [xo, yo, zo]) = (self.scale.map(f), self.off_diagonal.map(f));
         let scale = magstand_core::Mat3::new(xs, xo, yo, xo, ys, zo, yo, zo, zs);
@@ -149,6 +159,10 @@ pub fn ulog_bytes(rec: &Recording, opts: &LogWriteOptions) -> Vec<u8> {
             c.board_rotation.to_le_bytes(),
             "int32_t",
         ));
+        for (axis, trim) in ["X", "Y", "Z"].iter().zip(c.board_trim_deg) {
+            let bytes = (trim as f32).to_le_bytes();
+            params.push((format!("SENS_BOARD_{axis}_OFF"), bytes, "float"));
+        }
         for (k, axis) in ["X", "Y", "Z"].iter().enumerate() {
             for (name, v) in [
                 ("OFF", c.offset_g[k]),

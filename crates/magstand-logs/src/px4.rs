@@ -263,6 +263,7 @@ fn magnetometer(
                 zo,
                 p("ZSCALE", 1.0),
             );
+            let internal = p("ROT", -1.0) as i64 == -1;
             let code = match p("ROT", -1.0) as i64 {
                 -1 => log.param("SENS_BOARD_ROT").unwrap_or(0.0) as i64,
                 c => c,
@@ -273,8 +274,28 @@ fn magnetometer(
                 ));
                 Quat::identity()
             });
+            // An internal sensor turns with the board, whose fine trim (degrees, roll pitch
+            // yaw) PX4 applies after the board's rotation.
+            let trim = ["X", "Y", "Z"].map(|a| {
+                log.param(&format!("SENS_BOARD_{a}_OFF"))
+                    .unwrap_or(0.0)
+                    .to_radians()
+            });
+            let rot = match internal {
+                true => Quat::from_euler_angles(trim[0], trim[1], trim[2]) * rot,
+                false => rot,
+            };
+            let trimmed = match internal && trim.iter().any(|t| *t != 0.0) {
+                true => format!(
+                    ", the board's trim SENS_BOARD_X/Y/Z_OFF {:.2} {:.2} {:.2} deg",
+                    trim[0].to_degrees(),
+                    trim[1].to_degrees(),
+                    trim[2].to_degrees()
+                ),
+                false => String::new(),
+            };
             out.notes.push(format!(
-                "calibration CAL_MAG{k} applied (offsets, scale, rotation {code})"
+                "calibration CAL_MAG{k} applied (offsets, scale, rotation {code}{trimmed})"
             ));
             // PX4 adds its power compensation before this transform: `export` maps the
             // body-frame coefficients back through it.

@@ -143,16 +143,19 @@ fn a_turned_and_scaled_px4_calibration_is_taken_out_and_its_transform_kept() {
     use magstand_core::magnetometer_frame::SensorToBody;
     use magstand_logs::log_writer::Px4MagCalibration;
     let rec = run();
-    // (CAL_MAG0_ROT, SENS_BOARD_ROT, the roll, pitch and yaw PX4's table gives the code used).
-    for (rotation, board_rotation, [roll, pitch, yaw]) in [
-        (-1, 3, [0.0f64, 0.0, 135.0]),
-        (10, 0, [180.0, 0.0, 90.0]),
-        (24, 0, [0.0, 90.0, 0.0]),
-        (-1, 38, [90.0, 68.0, 293.0]),
+    // (CAL_MAG0_ROT, SENS_BOARD_ROT, the roll, pitch and yaw PX4's table gives the code used,
+    // the board's trim in degrees: an internal sensor turns with it, an external one does not).
+    for (rotation, board_rotation, [roll, pitch, yaw], board_trim_deg) in [
+        (-1, 3, [0.0f64, 0.0, 135.0], [0.0; 3]),
+        (10, 0, [180.0, 0.0, 90.0], [2.0, -1.5, 0.5]),
+        (24, 0, [0.0, 90.0, 0.0], [0.0; 3]),
+        (-1, 38, [90.0, 68.0, 293.0], [0.0; 3]),
+        (-1, 0, [0.0, 0.0, 0.0], [-3.4, 2.5, 1.0]),
     ] {
         let cal = Px4MagCalibration {
             rotation,
             board_rotation,
+            board_trim_deg,
             offset_g: [0.12, -0.05, 0.3],
             scale: [1.08, 0.94, 1.02],
             off_diagonal: [0.015, -0.02, 0.01],
@@ -174,13 +177,7 @@ fn a_turned_and_scaled_px4_calibration_is_taken_out_and_its_transform_kept() {
             .unwrap()
             .unwrap_or_else(|| panic!("{label}: no mag_to_body"));
         // The expected transform, worked out here from the angles: about x by the roll, then
-        // about y by the pitch, then about z by the yaw.
-        let (cr, sr) = (roll.to_radians().cos(), roll.to_radians().sin());
-        let (cp, sp) = (pitch.to_radians().cos(), pitch.to_radians().sin());
-        let (cy, sy) = (yaw.to_radians().cos(), yaw.to_radians().sin());
-        let rx = magstand_core::Mat3::new(1.0, 0.0, 0.0, 0.0, cr, -sr, 0.0, sr, cr);
-        let ry = magstand_core::Mat3::new(cp, 0.0, sp, 0.0, 1.0, 0.0, -sp, 0.0, cp);
-        let rz = magstand_core::Mat3::new(cy, -sy, 0.0, sy, cy, 0.0, 0.0, 0.0, 1.0);
+        // about y by the pitch, then about z by the yaw; the trim the same way, after it.
         let f = |v: f64| v as f32 as f64;
         let scale = magstand_core::Mat3::new(
             f(1.08),
@@ -193,7 +190,20 @@ fn a_turned_and_scaled_px4_calibration_is_taken_out_and_its_transform_kept() {
             f(0.01),
             f(1.02),
         );
-        let expected = rz * ry * rx * scale;
+        let rotation_matrix = |[roll, pitch, yaw]: [f64; 3]| {
+            let (cr, sr) = (roll.to_radians().cos(), roll.to_radians().sin());
+            let (cp, sp) = (pitch.to_radians().cos(), pitch.to_radians().sin());
+            let (cy, sy) = (yaw.to_radians().cos(), yaw.to_radians().sin());
+            let rx = magstand_core::Mat3::new(1.0, 0.0, 0.0, 0.0, cr, -sr, 0.0, sr, cr);
+            let ry = magstand_core::Mat3::new(cp, 0.0, sp, 0.0, 1.0, 0.0, -sp, 0.0, cp);
+            let rz = magstand_core::Mat3::new(cy, -sy, 0.0, sy, cy, 0.0, 0.0, 0.0, 1.0);
+            rz * ry * rx
+        };
+        let trim = match rotation {
+            -1 => rotation_matrix(board_trim_deg.map(f)),
+            _ => magstand_core::Mat3::identity(),
+        };
+        let expected = trim * rotation_matrix([roll, pitch, yaw]) * scale;
         let d = (frame.matrix() - expected).abs().max();
         assert!(
             d < 1e-12,
