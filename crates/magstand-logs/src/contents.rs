@@ -191,6 +191,17 @@ impl LogContents {
         }
     }
 
+    /// The PX4 release that wrote a ULog (`ver_sw_release`): major, minor and patch; None
+    /// for a DataFlash log or where the log does not say.
+    pub fn px4_version(&self) -> Option<[u8; 3]> {
+        if self.format != LogFormat::Ulog {
+            return None;
+        }
+        let v = self.info.get("ver_sw_release")?.parse::<u32>().ok()?;
+        let [major, minor, patch, _] = v.to_be_bytes();
+        (v != 0).then_some([major, minor, patch])
+    }
+
     /// A parameter's value.
     pub fn param(&self, name: &str) -> Option<f64> {
         self.params.get(name).copied()

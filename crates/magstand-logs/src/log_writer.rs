@@ -25,6 +25,10 @@ pub struct LogWriteOptions {
     /// readings are written as the driver would publish them, so that the calibration takes
     /// them back to the recording's field.
     pub px4_calibration: Option<Px4MagCalibration>,
+    /// The PX4 release the ULog says wrote it (`ver_sw_release`, 0xAABBCCTT: major, minor,
+    /// patch, type), where it should say one. Before 1.12 PX4's drivers applied the
+    /// calibration's offsets and scale to `sensor_mag` themselves, and the log is written so.
+    pub px4_release: Option<u32>,
 }
 
 impl Default for LogWriteOptions {
@@ -33,6 +37,7 @@ impl Default for LogWriteOptions {
             landed: true,
             device_id: 396_825,
             px4_calibration: None,
+            px4_release: None,
         }
     }
 }
@@ -60,7 +65,7 @@ pub struct Px4MagCalibration {
 impl Px4MagCalibration {
     /// The transform from the sensor's frame to the body frame, with every parameter as the
     /// log stores it (single precision), or why there is none.
-    fn sensor_to_body(&self) -> Result<SensorToBody, String> {
+    fn sensor_to_body(&self, driver_calibrated: bool) -> Result<SensorToBody, String> {
         let code = match self.rotation {
             -1 => self.board_rotation,
             c => c,
@@ -76,7 +81,10 @@ impl Px4MagCalibration {
         };
         let f = |v: f64| v as f32 as f64;
         let ([xs, ys, zs], [xo, yo, zo]) = (self.scale.map(f), self.off_diagonal.map(f));
-        let scale = magstand_core::Mat3::new(xs, xo, yo, xo, ys, zo, yo, zo, zs);
+        let scale = match driver_calibrated {
+            true => magstand_core::Mat3::identity(),
+            false => magstand_core::Mat3::new(xs, xo, yo, xo, ys, zo, yo, zo, zs),
+        };
         let m = rotation.to_rotation_matrix().into_inner() * scale;
         SensorToBody::new(std::array::from_fn(|r| std::array::from_fn(|c| m[(r, c)])))
     }
@@ -138,6 +146,9 @@ pub fn ulog_bytes(rec: &Recording, opts: &LogWriteOptions) -> Vec<u8> {
     };
     let sys = b"magstand";
     info(&mut out, &format!("char[{}] sys_name", sys.len()), sys);
+    if let Some(release) = opts.px4_release {
+        info(&mut out, "uint32_t ver_sw_release", &release.to_le_bytes());
+    }
     let cal = opts.px4_calibration;
     let mut params: Vec<(String, [u8; 4], &str)> = vec![
         (
@@ -182,7 +193,14 @@ pub fn ulog_bytes(rec: &Recording, opts: &LogWriteOptions) -> Vec<u8> {
         ulog_msg(&mut out, b'P', &p);
     }
     // The readings as the driver published them: the calibration's inverse of the field.
-    let frame = cal.map(|c| (c.sensor_to_body(), c.offset_g.map(|v| v as f32 as f64)));
+    let driver_calibrated = opts.px4_release.is_some_and(|r| (r >> 16) < 0x010C);
+    let frame = cal.map(|c| {
+        let offset_g = match driver_calibrated {
+            true => [0.0; 3],
+            false => c.offset_g.map(|v| v as f32 as f64),
+        };
+        (c.sensor_to_body(driver_calibrated), offset_g)
+    });
     let topics = [
         "sensor_mag",
         "actuator_motors",

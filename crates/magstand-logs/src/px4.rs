@@ -1,7 +1,8 @@
 //! PX4 topics to magstand streams.
 //!
 //! * `sensor_mag[N]` (gauss, as the driver published it) with the log's own calibration
-//!   (`CAL_MAGn_{X,Y,Z}OFF`, `SCALE`, `ODIAG`, matched by `CAL_MAGn_ID` = `device_id`) and
+//!   (`CAL_MAGn_{X,Y,Z}OFF`, `SCALE`, `ODIAG`, matched by `CAL_MAGn_ID` = `device_id`; before
+//!   PX4 1.12 the driver had applied the offsets and scale itself, and only the rotation is) and
 //!   rotation (`CAL_MAGn_ROT`; -1 marks an internal sensor, which follows `SENS_BOARD_ROT`) so
 //!   the field is in the body frame as PX4's estimator sees it, before any power compensation.
 //! * Motors: `actuator_motors` (0..1, PX4 1.13 on) when logged; otherwise `actuator_outputs`
@@ -263,6 +264,15 @@ fn magnetometer(
                 zo,
                 p("ZSCALE", 1.0),
             );
+            // Before PX4 1.12 the driver applied the offsets and scale to sensor_mag itself;
+            // the rotation (and, before it, the power compensation) came after.
+            let driver_calibrated = log
+                .px4_version()
+                .is_some_and(|[major, minor, _]| (major, minor) < (1, 12));
+            let (off, scale) = match driver_calibrated {
+                true => (Vec3::zeros(), nalgebra::Matrix3::identity()),
+                false => (off, scale),
+            };
             let internal = p("ROT", -1.0) as i64 == -1;
             let code = match p("ROT", -1.0) as i64 {
                 -1 => log.param("SENS_BOARD_ROT").unwrap_or(0.0) as i64,
@@ -294,9 +304,14 @@ fn magnetometer(
                 ),
                 false => String::new(),
             };
-            out.notes.push(format!(
-                "calibration CAL_MAG{k} applied (offsets, scale, rotation {code}{trimmed})"
-            ));
+            out.notes.push(match driver_calibrated {
+                true => format!(
+                    "calibration CAL_MAG{k}: its offsets and scale were applied by the driver of this PX4 (before 1.12), its rotation {code}{trimmed} applied here"
+                ),
+                false => format!(
+                    "calibration CAL_MAG{k} applied (offsets, scale, rotation {code}{trimmed})"
+                ),
+            });
             // PX4 adds its power compensation before this transform: `export` maps the
             // body-frame coefficients back through it.
             let rows = rot.to_rotation_matrix().into_inner() * scale;

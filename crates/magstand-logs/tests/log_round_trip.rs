@@ -225,3 +225,56 @@ fn a_turned_and_scaled_px4_calibration_is_taken_out_and_its_transform_kept() {
     let frame = SensorToBody::of_recording(&back, Path::new("plain.csv")).unwrap();
     assert!(frame.is_none_or(|f| f.is_identity()), "{frame:?}");
 }
+
+/// Before PX4 1.12 the driver applied the calibration's offsets and scale to `sensor_mag`
+/// itself (only the rotation came after, and the power compensation before it). A 1.11 log
+/// is imported with the rotation alone, which is then the frame the compensation lives in;
+/// a 1.14 log with the whole calibration.
+#[test]
+fn a_px4_log_before_1_12_is_calibrated_by_its_driver() {
+    use magstand_core::magnetometer_frame::SensorToBody;
+    use magstand_logs::log_writer::Px4MagCalibration;
+    let rec = run();
+    let cal = Px4MagCalibration {
+        rotation: 4,
+        board_rotation: 0,
+        board_trim_deg: [0.0; 3],
+        offset_g: [0.12, -0.05, 0.3],
+        scale: [1.08, 0.94, 1.02],
+        off_diagonal: [0.0; 3],
+    };
+    // Yaw 180: x and y turned over.
+    let turned = magstand_core::Mat3::from_diagonal(&magstand_core::Vec3::new(-1.0, -1.0, 1.0));
+    let f = |v: f64| v as f32 as f64;
+    let scaled = turned
+        * magstand_core::Mat3::from_diagonal(&magstand_core::Vec3::new(f(1.08), f(0.94), f(1.02)));
+    for (release, expected) in [(0x010B_00FFu32, turned), (0x010E_00FF, scaled)] {
+        let opts = LogWriteOptions {
+            landed: false,
+            px4_calibration: Some(cal),
+            px4_release: Some(release),
+            ..LogWriteOptions::default()
+        };
+        let (back, report) = import_bytes(
+            &ulog_bytes(&rec, &opts),
+            Path::new("release.ulg"),
+            &ImportOptions::default(),
+        )
+        .unwrap();
+        let label = format!("ver_sw_release {release:#010x}");
+        compare(&rec, &back, 1e-6, &label);
+        let frame = SensorToBody::of_recording(&back, Path::new("release.csv"))
+            .unwrap()
+            .unwrap_or_else(|| panic!("{label}: no mag_to_body"));
+        let d = (frame.matrix() - expected).abs().max();
+        assert!(
+            d < 1e-12,
+            "{label}: mag_to_body {frame}, expected {expected}"
+        );
+        let driver = report
+            .notes
+            .iter()
+            .any(|n| n.contains("applied by the driver"));
+        assert_eq!(driver, release < 0x010C_0000, "{label}: {:?}", report.notes);
+    }
+}
