@@ -121,6 +121,7 @@ fn export_physics(a: &ExportArgs, model: &magstand_diagnose::AugmentedModel) -> 
     let fitted_on = MagnetometerSlot::agreeing_with(model.magnetometer, &rec, path)?;
     let fitted_on_log = fitted_on.is_some();
     let instance = instance(a, fitted_on)?;
+    refuse_per_motor_without_it(a, fitted_on, model.magnetometer_to_body)?;
     let dist = model.dist_column(&rec, &origin)?;
     let reference = model.reference_ut();
     let input = match a.input {
@@ -275,6 +276,27 @@ fn compensation_frame(
     Ok(autopilot.compensation_frame(fitted_on, frame))
 }
 
+/// Refuses `--to ardupilot-per-motor` for a model of a compass whose firmware has no per-motor
+/// compensation: its log has a soft-iron matrix as the frame of its compensation
+/// (`magnetometer_to_body` of an ArduPilot compass), which only firmware without
+/// `COMPASS_PMOT_EN` adds it before.
+fn refuse_per_motor_without_it(
+    a: &ExportArgs,
+    fitted_on: Option<MagnetometerSlot>,
+    frame: Option<SensorToBody>,
+) -> Result<()> {
+    if a.target == Target::ArdupilotPerMotor
+        && matches!(fitted_on, Some(MagnetometerSlot::ArduPilotCompass(_)))
+        && frame.is_some()
+    {
+        bail!(
+            "{} was fitted on a log whose ArduPilot has no per-motor compensation (no COMPASS_PMOT_EN parameter): COMPASS_PMOT* would do nothing on that vehicle. Export --to ardupilot",
+            a.model.display()
+        );
+    }
+    Ok(())
+}
+
 /// Says, for a throttle line in an autopilot's parameters, which throttle it is fitted
 /// against. The autopilot multiplies it by its own throttle: the collective thrust demand,
 /// which its thrust curve (ArduPilot's `MOT_THST_EXPO`, PX4's `THR_MDL_FAC`) maps to the motor
@@ -336,6 +358,7 @@ pub fn run(a: ExportArgs) -> Result<()> {
         Target::Px4 | Target::Ardupilot | Target::ArdupilotPerMotor => instance(&a, fitted_on)?,
         _ => 0,
     };
+    refuse_per_motor_without_it(&a, fitted_on, model.magnetometer_to_body)?;
     let span = match &recording {
         Some(r) => Span::Rows {
             recording: r,

@@ -311,4 +311,36 @@ fn older_ardupilots_coefficients_are_written_before_its_soft_iron_matrix() {
         assert!((written - v).abs() < 6e-4, "{name}: {written} against {v}");
     }
     assert!(r.stdout.contains("soft-iron"), "{}", r.stdout);
+    // That firmware has no per-motor compensation to write, on compass 1 (the only one
+    // ArduPilot applies it to) either.
+    let r = magstand(&[
+        "import",
+        "--dataflash",
+        &log,
+        "--mag",
+        "0",
+        "--to-s",
+        "238",
+        "--out",
+        &p("first.csv"),
+    ]);
+    assert!(r.ok, "{}", r.stderr);
+    frame_and_export(&p("first.csv"), &p("first.json"));
+    let r = magstand(&[
+        "export",
+        "--model",
+        &p("first.json"),
+        "--to",
+        "ardupilot-per-motor",
+        "--recording",
+        &p("first.csv"),
+        "--out",
+        &p("pmot.param"),
+    ]);
+    assert!(
+        !r.ok && r.stderr.contains("COMPASS_PMOT_EN"),
+        "{}",
+        r.stderr
+    );
+    assert!(!std::path::Path::new(&p("pmot.param")).exists());
 }
