@@ -133,6 +133,28 @@ fn a_landed_stand_is_a_ground_segment_and_selection_keeps_it() {
     );
 }
 
+/// `rec` written as a ULog with `opts` and imported again: the field must come back as it was
+/// (the calibration taken out), with the transform the import wrote in `mag_to_body`, and the
+/// import's notes.
+fn calibrated_round_trip(
+    rec: &Recording,
+    opts: &LogWriteOptions,
+    label: &str,
+) -> (magstand_core::magnetometer_frame::SensorToBody, Vec<String>) {
+    let (back, report) = import_bytes(
+        &ulog_bytes(rec, opts),
+        Path::new("calibrated.ulg"),
+        &ImportOptions::default(),
+    )
+    .unwrap();
+    compare(rec, &back, 1e-6, label);
+    let frame =
+        magstand_core::magnetometer_frame::SensorToBody::of_recording(&back, Path::new("c.csv"))
+            .unwrap()
+            .unwrap_or_else(|| panic!("{label}: no mag_to_body"));
+    (frame, report.notes)
+}
+
 /// A PX4 calibration that turns and scales the sensor (a board mounted turned by 135 degrees,
 /// an external sensor upside down and turned by 90, one pitched up by 90, a board at PX4's
 /// one odd angle) is taken back out by the import, and the
@@ -165,17 +187,8 @@ fn a_turned_and_scaled_px4_calibration_is_taken_out_and_its_transform_kept() {
             px4_calibration: Some(cal),
             ..LogWriteOptions::default()
         };
-        let (back, report) = import_bytes(
-            &ulog_bytes(&rec, &opts),
-            Path::new("turned.ulg"),
-            &ImportOptions::default(),
-        )
-        .unwrap();
         let label = format!("CAL_MAG0_ROT {rotation}, SENS_BOARD_ROT {board_rotation}");
-        compare(&rec, &back, 1e-6, &label);
-        let frame = SensorToBody::of_recording(&back, Path::new("turned.csv"))
-            .unwrap()
-            .unwrap_or_else(|| panic!("{label}: no mag_to_body"));
+        let (frame, notes) = calibrated_round_trip(&rec, &opts, &label);
         // The expected transform, worked out here from the angles: about x by the roll, then
         // about y by the pitch, then about z by the yaw; the trim the same way, after it.
         let f = |v: f64| v as f32 as f64;
@@ -210,9 +223,8 @@ fn a_turned_and_scaled_px4_calibration_is_taken_out_and_its_transform_kept() {
             "{label}: mag_to_body {frame}, expected {expected}"
         );
         assert!(
-            report.notes.iter().any(|n| n.contains("mag_to_body")),
-            "{label}: {:?}",
-            report.notes
+            notes.iter().any(|n| n.contains("mag_to_body")),
+            "{label}: {notes:?}"
         );
     }
     // Without a calibration's turn or scale, nothing is written: the sensor reads the body.
@@ -232,7 +244,6 @@ fn a_turned_and_scaled_px4_calibration_is_taken_out_and_its_transform_kept() {
 /// a 1.14 log with the whole calibration.
 #[test]
 fn a_px4_log_before_1_12_is_calibrated_by_its_driver() {
-    use magstand_core::magnetometer_frame::SensorToBody;
     use magstand_logs::log_writer::Px4MagCalibration;
     let rec = run();
     let cal = Px4MagCalibration {
@@ -255,26 +266,14 @@ fn a_px4_log_before_1_12_is_calibrated_by_its_driver() {
             px4_release: Some(release),
             ..LogWriteOptions::default()
         };
-        let (back, report) = import_bytes(
-            &ulog_bytes(&rec, &opts),
-            Path::new("release.ulg"),
-            &ImportOptions::default(),
-        )
-        .unwrap();
         let label = format!("ver_sw_release {release:#010x}");
-        compare(&rec, &back, 1e-6, &label);
-        let frame = SensorToBody::of_recording(&back, Path::new("release.csv"))
-            .unwrap()
-            .unwrap_or_else(|| panic!("{label}: no mag_to_body"));
+        let (frame, notes) = calibrated_round_trip(&rec, &opts, &label);
         let d = (frame.matrix() - expected).abs().max();
         assert!(
             d < 1e-12,
             "{label}: mag_to_body {frame}, expected {expected}"
         );
-        let driver = report
-            .notes
-            .iter()
-            .any(|n| n.contains("applied by the driver"));
-        assert_eq!(driver, release < 0x010C_0000, "{label}: {:?}", report.notes);
+        let driver = notes.iter().any(|n| n.contains("applied by the driver"));
+        assert_eq!(driver, release < 0x010C_0000, "{label}: {notes:?}");
     }
 }
