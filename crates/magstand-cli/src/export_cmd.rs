@@ -262,11 +262,9 @@ fn compensation_frame(
         _ => Autopilot::ArduPilot,
     };
     match (autopilot, fitted_on, frame) {
-        (Autopilot::Px4, Some(slot @ MagnetometerSlot::Px4CalMag(_)), None) => bail!(
-            "{} was fitted on {slot} ({}) but does not say how its readings were taken to the body frame (`magnetometer_to_body`): PX4 adds its compensation before its calibration's rotation and scale, so the coefficients cannot be written in the sensor's frame. Import the log with this version (it writes `mag_to_body`) and fit it again",
-            a.model.display(),
-            slot.describe()
-        ),
+        (Autopilot::Px4, Some(slot @ MagnetometerSlot::Px4CalMag(_)), None) => {
+            return Err(px4_frame_unknown(a, slot));
+        }
         (Autopilot::Px4, Some(slot @ MagnetometerSlot::ArduPilotCompass(_)), _) => eprintln!(
             "warning: {} was fitted on {slot}, in ArduPilot's body frame; PX4 adds its compensation in the sensor's own frame, taken here to be the body frame (true where CAL_MAGn_ROT and SENS_BOARD_ROT are 0 and the scale is near 1)",
             a.model.display()
@@ -274,6 +272,16 @@ fn compensation_frame(
         _ => {}
     }
     Ok(autopilot.compensation_frame(fitted_on, frame))
+}
+
+/// Why a model of PX4 sensor `slot` that does not carry its frame cannot give PX4's
+/// coefficients.
+fn px4_frame_unknown(a: &ExportArgs, slot: MagnetometerSlot) -> anyhow::Error {
+    anyhow::anyhow!(
+        "{} was fitted on {slot} ({}) but does not say how its readings were taken to the body frame (`magnetometer_to_body`): PX4 adds its compensation before its calibration's rotation and scale, so the coefficients cannot be written in the sensor's frame. Import the log with this version (it writes `mag_to_body`) and fit it again",
+        a.model.display(),
+        slot.describe()
+    )
 }
 
 /// Refuses `--to ardupilot-per-motor` for a model of a compass whose firmware has no per-motor
@@ -422,6 +430,12 @@ pub fn run(a: ExportArgs) -> Result<()> {
             per_motor_params(&fit)
         }
         Target::Json => {
+            // The document's PX4 coefficients need the frame `--to px4` needs.
+            if let (Some(slot @ MagnetometerSlot::Px4CalMag(_)), None) =
+                (model.magnetometer, model.magnetometer_to_body)
+            {
+                return Err(px4_frame_unknown(&a, slot));
+            }
             let line = linear_approximation(&model, input, span)?;
             eprint!("{}", describe(&line));
             let per_motor = match &recording {

@@ -193,6 +193,13 @@ fn a_px4_compensation_is_written_in_the_frame_px4_adds_it_in() {
         r.stderr
     );
     assert!(!std::path::Path::new(&p("old.params")).exists());
+    // So is its JSON document, which holds PX4's coefficients too.
+    let r = magstand(&["export", "--model", &p("old.json"), "--to", "json"]);
+    assert!(
+        !r.ok && r.stderr.contains("magnetometer_to_body") && r.stdout.is_empty(),
+        "{}",
+        r.stderr
+    );
     // ArduPilot adds its compensation in the body frame: its line is the body frame's.
     let r = magstand(&[
         "export",
