@@ -114,14 +114,12 @@ pub fn export_json(
         std::array::from_fn(|a| column(&v, a))
     });
     // Each autopilot's coefficients in the frame it adds them in (see `px4_params`).
-    let in_frame = |autopilot: Autopilot| -> Result<LinearFit, LogsError> {
-        match autopilot
-            .compensation_frame(model.magnetometer, model.magnetometer_to_body)
-            .filter(|f| !f.is_identity())
-        {
-            Some(f) => line.in_sensor_frame(&f),
-            None => Ok(line.clone()),
-        }
+    let in_frame = |autopilot: Autopilot| {
+        line.in_frame(
+            autopilot
+                .compensation_frame(model.magnetometer, model.magnetometer_to_body)
+                .as_ref(),
+        )
     };
     let (px4, ap) = (
         in_frame(Autopilot::Px4)?.px4(),

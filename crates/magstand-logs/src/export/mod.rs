@@ -104,11 +104,15 @@ pub struct LinearFit {
 }
 
 impl LinearFit {
-    /// The line with its slopes in a magnetometer's own frame: each body-frame slope mapped
-    /// back through `frame`, the transform that took the sensor's readings to the body frame
-    /// (PX4 adds its compensation before its calibration's rotation and scale). The other
-    /// figures describe the line's fit, which the frame does not change.
-    pub fn in_sensor_frame(&self, frame: &SensorToBody) -> Result<LinearFit, LogsError> {
+    /// The line with its slopes in the frame an autopilot adds its compensation in: each
+    /// body-frame slope mapped back through `frame`, the transform from that frame to the body
+    /// frame ([`Autopilot::compensation_frame`]); the line as it is where there is none or it
+    /// is the identity. The other figures describe the line's fit, which the frame does not
+    /// change.
+    pub fn in_frame(&self, frame: Option<&SensorToBody>) -> Result<LinearFit, LogsError> {
+        let Some(frame) = frame.filter(|f| !f.is_identity()) else {
+            return Ok(self.clone());
+        };
         let slope = frame.to_sensor(Vec3::from(self.slope)).ok_or_else(|| {
             LogsError::Export(format!(
                 "the slopes {:?} could not be mapped back through the sensor-to-body matrix {frame}",
@@ -452,23 +456,18 @@ pub fn px4_params(
         LineInput::Current => ("current (battery 0)", "G/kA"),
         LineInput::Throttle => ("throttle", "G per unit throttle"),
     };
-    let (sensor_line, frame_note) = match frame.filter(|f| !f.is_identity()) {
-        Some(f) => (
-            line.in_sensor_frame(f)?,
-            format!(
-                "# In the sensor's own frame, where PX4 adds them: the body-frame slopes mapped back\n\
-                 # through the calibration's rotation and scale the log had (sensor to body,\n\
-                 # row by row: {f}). A new calibration leaves them as they are.\n"
-            ),
+    let frame_note = match frame.filter(|f| !f.is_identity()) {
+        Some(f) => format!(
+            "# In the sensor's own frame, where PX4 adds them: the body-frame slopes mapped back\n\
+             # through the calibration's rotation and scale the log had (sensor to body,\n\
+             # row by row: {f}). A new calibration leaves them as they are.\n"
         ),
-        None => (
-            line.clone(),
-            "# In the body frame: PX4 adds them in the sensor's own frame, which this is where the\n\
-             # sensor's calibration has no rotation or scale (the model names none).\n"
-                .to_string(),
-        ),
+        None => "# In the body frame: PX4 adds them in the sensor's own frame, which this is where the\n\
+                 # sensor's calibration has no rotation or scale (the model names none).\n"
+            .to_string(),
     };
-    let [(kind_name, kind), coefficients @ ..] = Autopilot::Px4.parameters(&sensor_line, instance);
+    let [(kind_name, kind), coefficients @ ..] =
+        Autopilot::Px4.parameters(&line.in_frame(frame)?, instance);
     let mut out = format!(
         "# PX4 magnetometer power compensation exported by magstand {}\n\
          # {kind_name} {kind}: {power}; coefficients in {unit}, minus the fitted slope\n\
@@ -502,17 +501,17 @@ pub fn ardupilot_params(
         LineInput::Current => ("current", "mG per A"),
         LineInput::Throttle => ("throttle", "mG per unit throttle"),
     };
-    let (line, frame_note) = match frame.filter(|f| !f.is_identity()) {
-        Some(f) => (
-            line.in_sensor_frame(f)?,
+    let frame_note = frame
+        .filter(|f| !f.is_identity())
+        .map(|f| {
             format!(
                 "# Mapped back through the compass's soft-iron matrix ({f}, row by row): this\n\
                  # firmware adds its compensation before that matrix.\n"
-            ),
-        ),
-        None => (line.clone(), String::new()),
-    };
-    let [(kind_name, kind), coefficients @ ..] = Autopilot::ArduPilot.parameters(&line, instance);
+            )
+        })
+        .unwrap_or_default();
+    let [(kind_name, kind), coefficients @ ..] =
+        Autopilot::ArduPilot.parameters(&line.in_frame(frame)?, instance);
     let mut out = format!(
         "# ArduPilot compassmot parameters exported by magstand {}; {unit}, minus the fitted slope\n\
          # (ArduPilot corrects with field + COMPASS_MOT x {power}).\n\
