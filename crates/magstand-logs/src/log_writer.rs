@@ -66,24 +66,16 @@ impl Px4MagCalibration {
     /// The transform from the sensor's frame to the body frame, with every parameter as the
     /// log stores it (single precision), or why there is none.
     fn sensor_to_body(&self, driver_calibrated: bool) -> Result<SensorToBody, String> {
-        let code = match self.rotation {
-            -1 => self.board_rotation,
-            c => c,
-        };
-        let rotation = crate::px4::px4_rotation(code.into())
-            .ok_or_else(|| format!("a PX4 rotation from 0 to 40; found {code}"))?;
-        let rotation = match self.rotation {
-            -1 => {
-                let [x, y, z] = self.board_trim_deg.map(|d| (d as f32 as f64).to_radians());
-                magstand_core::Quat::from_euler_angles(x, y, z) * rotation
-            }
-            _ => rotation,
-        };
         let f = |v: f64| v as f32 as f64;
-        let ([xs, ys, zs], [xo, yo, zo]) = (self.scale.map(f), self.off_diagonal.map(f));
+        let trim = self.board_trim_deg.map(|d| f(d).to_radians());
+        let (code, rotation, known) =
+            crate::px4::px4_sensor_rotation(self.rotation.into(), self.board_rotation.into(), trim);
+        if !known {
+            return Err(format!("a PX4 rotation from 0 to 40; found {code}"));
+        }
         let scale = match driver_calibrated {
             true => magstand_core::Mat3::identity(),
-            false => magstand_core::Mat3::new(xs, xo, yo, xo, ys, zo, yo, zo, zs),
+            false => crate::px4::px4_scale(self.scale.map(f), self.off_diagonal.map(f)),
         };
         let m = rotation.to_rotation_matrix().into_inner() * scale;
         SensorToBody::new(std::array::from_fn(|r| std::array::from_fn(|c| m[(r, c)])))
@@ -193,7 +185,10 @@ pub fn ulog_bytes(rec: &Recording, opts: &LogWriteOptions) -> Vec<u8> {
         ulog_msg(&mut out, b'P', &p);
     }
     // The readings as the driver published them: the calibration's inverse of the field.
-    let driver_calibrated = opts.px4_release.is_some_and(|r| (r >> 16) < 0x010C);
+    let driver_calibrated = opts.px4_release.is_some_and(|r| {
+        let [major, minor, patch, _] = r.to_be_bytes();
+        crate::px4::calibrated_by_driver([major, minor, patch])
+    });
     let frame = cal.map(|c| {
         let offset_g = match driver_calibrated {
             true => [0.0; 3],

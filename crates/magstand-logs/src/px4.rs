@@ -87,6 +87,43 @@ pub(crate) fn px4_rotation(code: i64) -> Option<Quat> {
     ))
 }
 
+/// The rotation PX4's calibration takes a magnetometer's reading to the body frame by, for
+/// `CAL_MAGn_ROT` = `code`: that rotation of PX4's table, or for an internal sensor (-1) the
+/// board's, `board_rotation`, followed by the board's trim `board_trim_rad` (roll, pitch, yaw;
+/// `SENS_BOARD_{X,Y,Z}_OFF`). Returns the code of the table it used, the rotation, and whether
+/// that code is in the table (where it is not, the table's part is left out).
+pub(crate) fn px4_sensor_rotation(
+    code: i64,
+    board_rotation: i64,
+    board_trim_rad: [f64; 3],
+) -> (i64, Quat, bool) {
+    let internal = code == -1;
+    let used = if internal { board_rotation } else { code };
+    let table = px4_rotation(used);
+    let rotation = table.unwrap_or_else(Quat::identity);
+    let rotation = match internal {
+        true => {
+            let [x, y, z] = board_trim_rad;
+            Quat::from_euler_angles(x, y, z) * rotation
+        }
+        false => rotation,
+    };
+    (used, rotation, table.is_some())
+}
+
+/// PX4's scale matrix of a magnetometer calibration: its diagonal (`CAL_MAGn_{X,Y,Z}SCALE`) and
+/// off-diagonal (`CAL_MAGn_{X,Y,Z}ODIAG`: xy, xz, yz).
+pub(crate) fn px4_scale([xs, ys, zs]: [f64; 3], [xo, yo, zo]: [f64; 3]) -> magstand_core::Mat3 {
+    magstand_core::Mat3::new(xs, xo, yo, xo, ys, zo, yo, zo, zs)
+}
+
+/// Whether PX4 `version` (major, minor, patch) applied a magnetometer's calibration offsets
+/// and scale in its driver, to `sensor_mag` itself: before 1.12 (`PX4Magnetometer`); from
+/// 1.12 the sensors module applies them.
+pub(crate) fn calibrated_by_driver([major, minor, _]: [u8; 3]) -> bool {
+    (major, minor) < (1, 12)
+}
+
 /// Reads the streams of a PX4 log.
 pub fn streams(log: &LogContents, opts: &ImportOptions) -> Result<VehicleStreams, LogsError> {
     let mut out = VehicleStreams::default();
@@ -233,7 +270,8 @@ fn magnetometer(
         },
     };
     // Its compensation belongs to the calibration slot whose id is the sensor's.
-    out.mag_slot = slot(inst).map(|k| MagnetometerSlot::Px4CalMag(k as u8));
+    let calibration = slot(inst);
+    out.mag_slot = calibration.map(|k| MagnetometerSlot::Px4CalMag(k as u8));
     let s = log.series("sensor_mag", inst).expect("listed instance");
     let axes: Vec<&[f64]> = ["x", "y", "z"]
         .iter()
@@ -247,54 +285,37 @@ fn magnetometer(
             })
         })
         .collect::<Result<_, _>>()?;
-    let (offset, scale, rotation) = match slot(inst) {
+    let (offset, scale, rotation) = match calibration {
         Some(k) => {
             let p =
                 |n: &str, default: f64| log.param(&format!("CAL_MAG{k}_{n}")).unwrap_or(default);
             let off = Vec3::new(p("XOFF", 0.0), p("YOFF", 0.0), p("ZOFF", 0.0));
-            let (xo, yo, zo) = (p("XODIAG", 0.0), p("YODIAG", 0.0), p("ZODIAG", 0.0));
-            let scale = nalgebra::Matrix3::new(
-                p("XSCALE", 1.0),
-                xo,
-                yo,
-                xo,
-                p("YSCALE", 1.0),
-                zo,
-                yo,
-                zo,
-                p("ZSCALE", 1.0),
+            let scale = px4_scale(
+                [p("XSCALE", 1.0), p("YSCALE", 1.0), p("ZSCALE", 1.0)],
+                [p("XODIAG", 0.0), p("YODIAG", 0.0), p("ZODIAG", 0.0)],
             );
             // Before PX4 1.12 the driver applied the offsets and scale to sensor_mag itself;
             // the rotation (and, before it, the power compensation) came after.
-            let driver_calibrated = log
-                .px4_version()
-                .is_some_and(|[major, minor, _]| (major, minor) < (1, 12));
+            let driver_calibrated = log.px4_version().is_some_and(calibrated_by_driver);
             let (off, scale) = match driver_calibrated {
                 true => (Vec3::zeros(), nalgebra::Matrix3::identity()),
                 false => (off, scale),
             };
-            let internal = p("ROT", -1.0) as i64 == -1;
-            let code = match p("ROT", -1.0) as i64 {
-                -1 => log.param("SENS_BOARD_ROT").unwrap_or(0.0) as i64,
-                c => c,
-            };
-            let rot = px4_rotation(code).unwrap_or_else(|| {
-                out.notes.push(format!(
-                    "warning: rotation {code} of CAL_MAG{k} is not one of PX4's (0 to 40); the field stays in the sensor frame"
-                ));
-                Quat::identity()
-            });
             // An internal sensor turns with the board, whose fine trim (degrees, roll pitch
             // yaw) PX4 applies after the board's rotation.
+            let internal = p("ROT", -1.0) as i64 == -1;
             let trim = ["X", "Y", "Z"].map(|a| {
                 log.param(&format!("SENS_BOARD_{a}_OFF"))
                     .unwrap_or(0.0)
                     .to_radians()
             });
-            let rot = match internal {
-                true => Quat::from_euler_angles(trim[0], trim[1], trim[2]) * rot,
-                false => rot,
-            };
+            let board = log.param("SENS_BOARD_ROT").unwrap_or(0.0) as i64;
+            let (code, rot, known) = px4_sensor_rotation(p("ROT", -1.0) as i64, board, trim);
+            if !known {
+                out.notes.push(format!(
+                    "warning: rotation {code} of CAL_MAG{k} is not one of PX4's (0 to 40); the field stays in the sensor frame"
+                ));
+            }
             let trimmed = match internal && trim.iter().any(|t| *t != 0.0) {
                 true => format!(
                     ", the board's trim SENS_BOARD_X/Y/Z_OFF {:.2} {:.2} {:.2} deg",
