@@ -282,7 +282,7 @@ fn compensation_frame(
     if log.param("COMPASS_PMOT_EN").is_some() {
         return None;
     }
-    let suffix = if n == 1 { String::new() } else { n.to_string() };
+    let suffix = compass_suffix(n.into());
     let p = |name: &str, axis: &str| log.param(&format!("COMPASS_{name}{suffix}_{axis}"));
     let diagonal = ["X", "Y", "Z"].map(|a| p("DIA", a).unwrap_or(0.0));
     // The firmware takes a diagonal of zeros (never calibrated) for ones.
@@ -311,6 +311,13 @@ fn compensation_frame(
     }
 }
 
+/// What ArduPilot appends to a per-compass parameter's name for compass `n` (1 to 3): nothing
+/// for the first (`COMPASS_MOT_X`, `COMPASS_DEV_ID`), the number for the others
+/// (`COMPASS_MOT2_X`, `COMPASS_DEV_ID3`).
+pub(crate) fn compass_suffix(n: usize) -> String {
+    if n <= 1 { String::new() } else { n.to_string() }
+}
+
 /// The compass (1 to 3) whose parameters (`COMPASS_MOT*`, `COMPASS_EXTERN*`, ...) belong to
 /// MAG instance `inst`. The log's instances follow the compasses' priorities
 /// (`COMPASS_PRIOn_ID`, from ArduPilot 4.0), the parameters the order in which the compasses
@@ -318,12 +325,11 @@ fn compensation_frame(
 /// its parameters. Older firmware has no priorities, and instance n is compass n + 1. None
 /// where the priority's device has no parameters in the log, or beyond the third compass.
 fn compass_of_instance(log: &LogContents, inst: u8) -> Option<u8> {
-    let suffix = |n: u8| if n == 1 { String::new() } else { n.to_string() };
     match priority_device(log, inst) {
         None => (inst < 3).then_some(inst + 1),
-        Some(id) => {
-            (1..=3u8).find(|&n| log.param(&format!("COMPASS_DEV_ID{}", suffix(n))) == Some(id))
-        }
+        Some(id) => (1..=3u8).find(|&n| {
+            log.param(&format!("COMPASS_DEV_ID{}", compass_suffix(n.into()))) == Some(id)
+        }),
     }
 }
 

@@ -402,11 +402,7 @@ impl Autopilot {
                 format!("CAL_MAG{instance}_ZCOMP"),
             ],
             Autopilot::ArduPilot => {
-                let suffix = if instance <= 1 {
-                    String::new()
-                } else {
-                    instance.to_string()
-                };
+                let suffix = crate::ardupilot::compass_suffix(instance);
                 [
                     "COMPASS_MOTCT".into(),
                     format!("COMPASS_MOT{suffix}_X"),
