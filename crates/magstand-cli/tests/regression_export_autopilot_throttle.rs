@@ -34,16 +34,7 @@ fn a_throttle_line_for_ardupilot_is_fitted_against_its_own_throttle() {
     let (rec, model, out) = (p("r.csv"), p("m.json"), p("c.csv"));
     let r = magstand(&["import", "--dataflash", &log, "--out", &rec, "--mag", "1"]);
     assert!(r.ok && r.stderr.contains("CTUN.ThrOut"), "{}", r.stderr);
-    let r = magstand(&[
-        "fit",
-        "--recording",
-        &rec,
-        "--earth",
-        "fit",
-        "--model-out",
-        &model,
-    ]);
-    assert!(r.ok, "{}", r.stderr);
+    common::fit_flight(&rec, &model);
     let r = magstand(&[
         "compensate",
         "--model",

@@ -37,16 +37,7 @@ fn frame_and_export(rec: &str, model: &str) -> (SensorToBody, serde_json::Value)
     let frame = SensorToBody::of_recording(&recording, rec.as_ref())
         .unwrap()
         .unwrap_or_else(|| panic!("{rec}: the import wrote no mag_to_body"));
-    let r = magstand(&[
-        "fit",
-        "--recording",
-        rec,
-        "--earth",
-        "fit",
-        "--model-out",
-        model,
-    ]);
-    assert!(r.ok, "{}", r.stderr);
+    common::fit_flight(rec, model);
     let r = magstand(&["export", "--model", model, "--to", "json"]);
     assert!(r.ok, "{}", r.stderr);
     (frame, serde_json::from_str(&r.stdout).unwrap())

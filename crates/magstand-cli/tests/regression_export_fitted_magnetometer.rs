@@ -35,16 +35,7 @@ fn an_export_writes_the_parameters_of_the_magnetometer_the_model_was_fitted_on()
     }
     let (rec, other) = (p("mag1.csv"), p("mag2.csv"));
     let model = p("m.json");
-    let r = magstand(&[
-        "fit",
-        "--recording",
-        &rec,
-        "--earth",
-        "fit",
-        "--model-out",
-        &model,
-    ]);
-    assert!(r.ok, "{}", r.stderr);
+    common::fit_flight(&rec, &model);
     let text = std::fs::read_to_string(&model).unwrap();
     assert!(
         text.contains("\"magnetometer\": \"ardupilot:2\""),

@@ -86,3 +86,19 @@ pub fn flight_spread(stdout: &str) -> Vec<f64> {
         .map(|s| s.split(" -> ").filter_map(|v| v.parse().ok()).collect())
         .unwrap_or_default()
 }
+
+/// Fits a flight recording's model with its Earth field fitted out (`fit --recording R
+/// --earth fit --model-out M`), failing the test if it does not succeed.
+#[allow(dead_code)] // not every test file fits a flight
+pub fn fit_flight(recording: &str, model_out: &str) {
+    let r = magstand(&[
+        "fit",
+        "--recording",
+        recording,
+        "--earth",
+        "fit",
+        "--model-out",
+        model_out,
+    ]);
+    assert!(r.ok, "{}", r.stderr);
+}
