@@ -11,7 +11,8 @@
 //! Every field is scaled as the log itself declares it (`FMT` type, `FMTU` unit and
 //! multiplier; see [`crate::field_units`]): Copter 3.3 logs `CURR` in integer hundredths,
 //! Copter 3.4 in float volts and amperes, and a fixed factor would be wrong for one of them.
-//! * `ATT` roll, pitch, yaw in degrees; `EV` 10/11 armed/disarmed, 28/18 took off/landed;
+//! * `ATT` roll, pitch, yaw in degrees, with the trim `AHRS_TRIM_*` added back (the attitude
+//!   of the board, whose frame `MAG` is in, rather than of the trimmed vehicle body); `EV` 10/11 armed/disarmed, 28/18 took off/landed;
 //!   `GPS` position and GPS week time for the Earth-field model.
 use magstand_core::magnetometer_frame::SensorToBody;
 use magstand_core::magnetometer_slot::MagnetometerSlot;
@@ -66,11 +67,12 @@ pub fn streams(log: &LogContents, opts: &ImportOptions) -> Result<VehicleStreams
         let deg =
             |f: &str| field_units::scale(log, "ATT", f, Quantity::Angle).map(|k| k.unwrap_or(1.0));
         let (kr, kp, ky) = (deg("Roll")?, deg("Pitch")?, deg("Yaw")?);
+        let [trim_x, trim_y, trim_z] = ahrs_trim_rad(log, &mut out.notes);
         out.attitude = Some(Stream::from_pairs((0..a.len()).map(|k| {
             let q = Quat::from_euler_angles(
-                (r[k] * kr).to_radians(),
-                (p[k] * kp).to_radians(),
-                (y[k] * ky).to_radians(),
+                (r[k] * kr).to_radians() + trim_x,
+                (p[k] * kp).to_radians() + trim_y,
+                (y[k] * ky).to_radians() + trim_z,
             );
             (
                 a.t_s[k],
@@ -91,6 +93,40 @@ pub fn streams(log: &LogContents, opts: &ImportOptions) -> Result<VehicleStreams
     out.landed = events(18, 28);
     out.position = position(log);
     Ok(out)
+}
+
+/// The trim `AHRS_TRIM_X`, `_Y` and `_Z` (rad) that turns the logged attitude back to the
+/// autopilot board's, the frame `MAG` is logged in.
+///
+/// `ATT` is the vehicle body's attitude: the estimators report their Euler angles less the
+/// trim (`NavEKF2_core`/`NavEKF3_core::getEulerAngles`: `euler - get_trim()`), while the
+/// compass is rotated only by the board orientation. Without the trim, a field turned by the
+/// logged attitude is off by the trim's rotation, which moves with heading (1 degree of roll
+/// trim under 20 µT of horizontal field: ±0.35 µT on z). Adding the trim back to the angles is
+/// the exact inverse of the estimators' subtraction, which takes `AHRS_TRIM_Z` off the yaw too
+/// (documented as unused, and 0 unless set by hand). The trim is applied as logged, as the
+/// estimators apply it; a non-finite one is taken as none, with a note.
+fn ahrs_trim_rad(log: &LogContents, notes: &mut Vec<String>) -> [f64; 3] {
+    let mut trim = [0.0; 3];
+    for (value, name) in trim
+        .iter_mut()
+        .zip(["AHRS_TRIM_X", "AHRS_TRIM_Y", "AHRS_TRIM_Z"])
+    {
+        match log.param(name) {
+            None => {}
+            Some(t) if t.is_finite() => *value = t,
+            Some(t) => notes.push(format!(
+                "{name} = {t} is not a number of radians: the attitude is taken untrimmed about that axis"
+            )),
+        }
+    }
+    if trim != [0.0; 3] {
+        let [x, y, z] = trim.map(f64::to_degrees);
+        notes.push(format!(
+            "attitude turned to the autopilot board's frame, in which MAG is logged: the trim added back to ATT's roll, pitch and yaw ({x:+.2}, {y:+.2}, {z:+.2} deg: AHRS_TRIM_X, _Y, _Z)"
+        ));
+    }
+    trim
 }
 
 /// One field of `series` as a stream in magstand's unit for `quantity`, scaled as the log

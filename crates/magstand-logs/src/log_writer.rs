@@ -29,6 +29,10 @@ pub struct LogWriteOptions {
     /// patch, type), where it should say one. Before 1.12 PX4's drivers applied the
     /// calibration's offsets and scale to `sensor_mag` themselves, and the log is written so.
     pub px4_release: Option<u32>,
+    /// ArduPilot's `AHRS_TRIM_X`, `_Y`, `_Z` (rad) for the DataFlash log. The recording's
+    /// attitude is the autopilot board's, in which `MAG` is logged; `ATT` is written as the
+    /// estimators log it, its Euler angles less the trim.
+    pub ardupilot_trim_rad: [f64; 3],
 }
 
 impl Default for LogWriteOptions {
@@ -38,6 +42,7 @@ impl Default for LogWriteOptions {
             device_id: 396_825,
             px4_calibration: None,
             px4_release: None,
+            ardupilot_trim_rad: [0.0; 3],
         }
     }
 }
@@ -500,6 +505,14 @@ pub fn dataflash_bytes(rec: &Recording, opts: &LogWriteOptions) -> Vec<u8> {
         ("COMPASS_MOTCT".into(), 0.0),
     ];
     params.extend((1..=n).map(|c| (format!("SERVO{c}_FUNCTION"), 32.0 + c as f64)));
+    if opts.ardupilot_trim_rad != [0.0; 3] {
+        params.extend(
+            ["AHRS_TRIM_X", "AHRS_TRIM_Y", "AHRS_TRIM_Z"]
+                .iter()
+                .zip(opts.ardupilot_trim_rad)
+                .map(|(name, t)| (name.to_string(), t)),
+        );
+    }
     for (name, v) in &params {
         b.param(t0, name, *v);
     }
@@ -520,9 +533,15 @@ pub fn dataflash_bytes(rec: &Recording, opts: &LogWriteOptions) -> Vec<u8> {
         }
         if let Some(q) = &rec.attitude {
             let (roll, pitch, yaw) = q[r].euler_angles();
+            let [tx, ty, tz] = opts.ardupilot_trim_rad;
             b.row(
                 ATT,
-                &[us, roll.to_degrees(), pitch.to_degrees(), yaw.to_degrees()],
+                &[
+                    us,
+                    (roll - tx).to_degrees(),
+                    (pitch - ty).to_degrees(),
+                    (yaw - tz).to_degrees(),
+                ],
             );
         }
     }

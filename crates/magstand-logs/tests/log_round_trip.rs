@@ -277,3 +277,63 @@ fn a_px4_log_before_1_12_is_calibrated_by_its_driver() {
         assert_eq!(driver, release < 0x010C_0000, "{label}: {notes:?}");
     }
 }
+
+/// ArduPilot logs `ATT` as the vehicle body's attitude, the estimators' Euler angles less the
+/// trim `AHRS_TRIM_*`, while `MAG` is in the autopilot board's frame. The import adds the trim
+/// back, so that the attitude is the board's again: without it, the attitude would be off by
+/// the trim (here 2 degrees of roll), which turns the Earth field by as much.
+#[test]
+fn an_ardupilot_trim_is_added_back_to_the_logged_attitude() {
+    let rec = run();
+    let trim = [0.035, -0.02, 0.01];
+    let opts = LogWriteOptions {
+        landed: false,
+        ardupilot_trim_rad: trim,
+        ..LogWriteOptions::default()
+    };
+    let (back, report) = import_bytes(
+        &dataflash_bytes(&rec, &opts),
+        Path::new("trimmed.bin"),
+        &ImportOptions::default(),
+    )
+    .unwrap();
+    compare(&rec, &back, 5e-4 + 1e-9, "DataFlash with AHRS_TRIM");
+    assert!(
+        report
+            .notes
+            .iter()
+            .any(|n| n.contains("AHRS_TRIM_X") && n.contains("+2.01, -1.15, +0.57 deg")),
+        "{:?}",
+        report.notes
+    );
+    // The same log without its trim parameters comes back turned by the trim.
+    let untrimmed = LogWriteOptions {
+        ardupilot_trim_rad: [0.0; 3],
+        ..opts
+    };
+    let logged_as_trimmed = {
+        let mut r = rec.clone();
+        let q = r.attitude.as_mut().unwrap();
+        for a in q.iter_mut() {
+            let (roll, pitch, yaw) = a.euler_angles();
+            *a = magstand_core::Quat::from_euler_angles(
+                roll - trim[0],
+                pitch - trim[1],
+                yaw - trim[2],
+            );
+        }
+        r
+    };
+    let (back, _) = import_bytes(
+        &dataflash_bytes(&logged_as_trimmed, &untrimmed),
+        Path::new("untrimmed.bin"),
+        &ImportOptions::default(),
+    )
+    .unwrap();
+    let q = |r: &Recording, k: usize| r.attitude.as_ref().unwrap()[k];
+    let off = q(&back, 5).angle_to(&q(&rec, 5));
+    assert!(
+        (0.03..0.05).contains(&off),
+        "without the trim the attitude is {off} rad from the board's"
+    );
+}
