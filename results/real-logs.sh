@@ -129,13 +129,16 @@ What the tables say:
   at the first, with 23). The corrupt fixture has a message of the wrong size, and what
   precedes it has no motor outputs: the import says so.
 - The ArduPilot log (10 Hz compass, 155 s of flight with turns up to 46 degrees of tilt and the
-  whole compass rose) is the one with enough data. Its fitted Earth field, 57.2 uT at -65.6
+  whole compass rose) is the one with enough data. Its fitted Earth field, 57.3 uT at -65.7
   degrees inclination, matches the reference field for Canberra in 2015 (IGRF-13: about 57 uT,
   -66 degrees), though nothing told the fit where the vehicle was. Its magnetometer samples are
   0.054 s old at their stamps (turning the Earth field by the attitude of that moment took
-  0.2 to 0.3 uT off every held-out figure, for every model, on 2026-11-26). On held-out time
-  blocks magstand's model is better than both lines on y (0.98 against 1.80 and 1.73 uT with
-  the throttle as input) and equal on x and z. The external compass, the control, has almost nothing
+  0.2 to 0.3 uT off every held-out figure, for every model, on 2026-11-26). Since 2026-12-07
+  the attitude of its internal compass is the board's: ATT is the vehicle body's, less the
+  trim `AHRS_TRIM_*` (1.18 and 0.30 degrees of roll and pitch here), which the import now adds
+  back; with the throttle as input that took 0.06 to 0.07 uT off every model's held-out z and
+  0.01 to 0.02 off y. On held-out time blocks magstand's model is better than both lines on y
+  (0.96 against 1.79 and 1.72 uT with the throttle as input) and equal on x and z. The external compass, the control, has almost nothing
   for either to explain.
 - The PX4 logs record the magnetometer at 1 to 3 Hz for 18 to 95 s. The octo and V6XRT logs run
   from take-off, with no row where every motor is off; the flight fit's own estimate of the

@@ -11,8 +11,9 @@
 //! Every field is scaled as the log itself declares it (`FMT` type, `FMTU` unit and
 //! multiplier; see [`crate::field_units`]): Copter 3.3 logs `CURR` in integer hundredths,
 //! Copter 3.4 in float volts and amperes, and a fixed factor would be wrong for one of them.
-//! * `ATT` roll, pitch, yaw in degrees, with the trim `AHRS_TRIM_*` added back (the attitude
-//!   of the board, whose frame `MAG` is in, rather than of the trimmed vehicle body); `EV` 10/11 armed/disarmed, 28/18 took off/landed;
+//! * `ATT` roll, pitch, yaw in degrees; for an internal compass with the trim `AHRS_TRIM_*`
+//!   added back (the attitude of the board, whose frame its `MAG` is in, rather than of the
+//!   trimmed vehicle body); `EV` 10/11 armed/disarmed, 28/18 took off/landed;
 //!   `GPS` position and GPS week time for the Earth-field model.
 use magstand_core::magnetometer_frame::SensorToBody;
 use magstand_core::magnetometer_slot::MagnetometerSlot;
@@ -29,7 +30,7 @@ const UT_PER_MILLIGAUSS: f64 = 0.1;
 /// Reads the streams of an ArduPilot log.
 pub fn streams(log: &LogContents, opts: &ImportOptions) -> Result<VehicleStreams, LogsError> {
     let mut out = VehicleStreams::default();
-    magnetometer(log, opts, &mut out)?;
+    let external = magnetometer(log, opts, &mut out)?;
     motors(log, opts, &mut out)?;
     // A sensor that is not fitted logs 0 throughout; VehicleStreams::drop_unmeasured_supply
     // leaves it out after both formats are read.
@@ -67,7 +68,7 @@ pub fn streams(log: &LogContents, opts: &ImportOptions) -> Result<VehicleStreams
         let deg =
             |f: &str| field_units::scale(log, "ATT", f, Quantity::Angle).map(|k| k.unwrap_or(1.0));
         let (kr, kp, ky) = (deg("Roll")?, deg("Pitch")?, deg("Yaw")?);
-        let [trim_x, trim_y, trim_z] = ahrs_trim_rad(log, &mut out.notes);
+        let [trim_x, trim_y, trim_z] = ahrs_trim_rad(log, external, &mut out.notes);
         out.attitude = Some(Stream::from_pairs((0..a.len()).map(|k| {
             let q = Quat::from_euler_angles(
                 (r[k] * kr).to_radians() + trim_x,
@@ -96,17 +97,22 @@ pub fn streams(log: &LogContents, opts: &ImportOptions) -> Result<VehicleStreams
 }
 
 /// The trim `AHRS_TRIM_X`, `_Y` and `_Z` (rad) that turns the logged attitude back to the
-/// autopilot board's, the frame `MAG` is logged in.
+/// autopilot board's, the frame an internal compass's `MAG` is logged in; none for an
+/// `external` compass.
 ///
 /// `ATT` is the vehicle body's attitude: the estimators report their Euler angles less the
-/// trim (`NavEKF2_core`/`NavEKF3_core::getEulerAngles`: `euler - get_trim()`), while the
-/// compass is rotated only by the board orientation. Without the trim, a field turned by the
-/// logged attitude is off by the trim's rotation, which moves with heading (1 degree of roll
-/// trim under 20 µT of horizontal field: ±0.35 µT on z). Adding the trim back to the angles is
-/// the exact inverse of the estimators' subtraction, which takes `AHRS_TRIM_Z` off the yaw too
-/// (documented as unused, and 0 unless set by hand). The trim is applied as logged, as the
-/// estimators apply it; a non-finite one is taken as none, with a note.
-fn ahrs_trim_rad(log: &LogContents, notes: &mut Vec<String>) -> [f64; 3] {
+/// trim (`NavEKF2_core`/`NavEKF3_core::getEulerAngles`: `euler - get_trim()`). An internal
+/// compass is turned only by the board orientation (`AP_Compass_Backend::rotate_field`), so it
+/// measures in the board's frame: without the trim, a field turned by the logged attitude is
+/// off by the trim's rotation, which moves with heading (1 degree of roll trim under 20 µT of
+/// horizontal field: ±0.35 µT on z). Adding the trim back to the angles is the exact inverse of
+/// the estimators' subtraction, which takes `AHRS_TRIM_Z` off the yaw too (documented as
+/// unused, and 0 unless set by hand). An external compass is turned by its own
+/// `COMPASS_ORIENT*`, which is relative to the vehicle, not to the board: the vehicle body's
+/// attitude is its frame, as logged. One whose kind is not logged is taken as internal, as
+/// the firmware does unless its driver finds it external. The trim is applied as logged, as
+/// the estimators apply it; a non-finite one is taken as none, with a note.
+fn ahrs_trim_rad(log: &LogContents, external: Option<bool>, notes: &mut Vec<String>) -> [f64; 3] {
     let mut trim = [0.0; 3];
     for (value, name) in trim
         .iter_mut()
@@ -119,6 +125,12 @@ fn ahrs_trim_rad(log: &LogContents, notes: &mut Vec<String>) -> [f64; 3] {
                 "{name} = {t} is not a number of radians: the attitude is taken untrimmed about that axis"
             )),
         }
+    }
+    if trim != [0.0; 3] && external == Some(true) {
+        notes.push(
+            "attitude as ATT logs it, the vehicle body's: the external compass is oriented to the vehicle (COMPASS_ORIENT*), not to the board whose AHRS_TRIM* ATT takes out".into(),
+        );
+        return [0.0; 3];
     }
     if trim != [0.0; 3] {
         let [x, y, z] = trim.map(f64::to_degrees);
@@ -144,11 +156,13 @@ fn si_stream(
     Ok(series.stream(field, |x| (x * k).is_finite().then_some(x * k)))
 }
 
+/// Reads the chosen compass's field into `out`; returns whether that compass is external
+/// (`COMPASS_EXTERN*`), None where the log does not say.
 fn magnetometer(
     log: &LogContents,
     opts: &ImportOptions,
     out: &mut VehicleStreams,
-) -> Result<(), LogsError> {
+) -> Result<Option<bool>, LogsError> {
     let instances = log.instances("MAG");
     if instances.is_empty() {
         return Err(LogsError::Missing {
@@ -234,7 +248,7 @@ fn magnetometer(
         }
         (s.t_s[r], v.iter().all(|x| x.is_finite()).then_some(v))
     }));
-    Ok(())
+    Ok(external(inst).map(|e| e != 0.0))
 }
 
 /// The motor compensation ArduPilot applied to the logged field, per message, and the scale of
@@ -655,6 +669,42 @@ fn position(log: &LogContents) -> Option<Position> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The trim turns an internal compass's attitude (or one whose kind is not logged) back to
+    /// the board's; an external compass keeps the vehicle body's, and a non-finite trim is none.
+    #[test]
+    fn the_ahrs_trim_applies_to_an_internal_compass_only() {
+        let mut log = LogContents::new("a.bin".into(), crate::contents::LogFormat::DataFlash);
+        let mut notes = Vec::new();
+        assert_eq!(ahrs_trim_rad(&log, Some(false), &mut notes), [0.0; 3]);
+        assert!(notes.is_empty(), "{notes:?}");
+        log.params.insert("AHRS_TRIM_X".into(), 0.02);
+        log.params.insert("AHRS_TRIM_Y".into(), -0.005);
+        for kind in [Some(false), None] {
+            assert_eq!(
+                ahrs_trim_rad(&log, kind, &mut notes),
+                [0.02, -0.005, 0.0],
+                "{kind:?}"
+            );
+        }
+        assert!(
+            notes.iter().all(|n| n.contains("+1.15, -0.29, +0.00 deg")),
+            "{notes:?}"
+        );
+        notes.clear();
+        assert_eq!(ahrs_trim_rad(&log, Some(true), &mut notes), [0.0; 3]);
+        assert!(
+            notes.len() == 1 && notes[0].contains("external"),
+            "{notes:?}"
+        );
+        notes.clear();
+        log.params.insert("AHRS_TRIM_X".into(), f64::NAN);
+        assert_eq!(
+            ahrs_trim_rad(&log, Some(false), &mut notes),
+            [0.0, -0.005, 0.0]
+        );
+        assert!(notes[0].contains("AHRS_TRIM_X = NaN"), "{notes:?}");
+    }
 
     /// From ArduPilot 4.0 the MAG instances follow the priorities and the `COMPASS_MOT*`
     /// parameters the detection order: the instance's device id names its compass. Without
