@@ -504,6 +504,19 @@ pub fn run(a: FitArgs) -> Result<()> {
     files::refuse_overwriting_inputs(&inputs, &[&a.model_out])?;
     let mut rec = recording_csv::read(&a.recording)?;
     let origin = a.recording.display().to_string();
+    // A stuck sensor fits any model with no error at all: a model of nothing, and firmware
+    // parameters of zero that look like a result. (Fewer rows than a fit takes are refused
+    // by the fit, with their count.)
+    if let Some((axis, value)) = rec
+        .constant_magnetometer_axis()
+        .filter(|_| rec.len() >= magstand_ident::MIN_ROWS)
+    {
+        bail!(
+            "{origin}: the magnetometer does not respond: mag_{}_ut reads {value:.4} µT in every one of the {} rows; expected readings that change with the commands and the noise",
+            AXES[axis],
+            rec.len()
+        );
+    }
     let slot = MagnetometerSlot::of_recording(&rec, &a.recording)?;
     let to_body = SensorToBody::of_recording(&rec, &a.recording)?;
     // Printed after the model is written: a reader that closes stdout early must not cost it.

@@ -142,6 +142,12 @@ fn silent_misreads_are_named() {
     );
     let f = bad("diagnose-constant-mag.csv");
     refused(&["diagnose", "--recording", &f], &[&f, "does not respond"]);
+    // `fit` took the stuck axis for a disturbance of zero, fitted with no error at all, and
+    // wrote the model (whose firmware parameters were zeros) with exit 0.
+    refused(
+        &["fit", "--recording", &f, "--model-out", "{out}"],
+        &[&f, "does not respond", "mag_"],
+    );
     refused(
         &[
             "export",

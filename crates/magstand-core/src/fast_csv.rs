@@ -256,6 +256,12 @@ fn assemble(
     {
         return None;
     }
+    if lay
+        .bat_v
+        .is_some_and(|c| numbers[c].iter().any(|v| *v < 0.0))
+    {
+        return None;
+    }
     let vec3 = |c: [usize; 3]| -> Vec<Vec3> {
         (0..rows)
             .map(|r| Vec3::new(numbers[c[0]][r], numbers[c[1]][r], numbers[c[2]][r]))
@@ -347,6 +353,19 @@ mod tests {
             "",
         ] {
             same_or_declined(&format!("{head}{body}"));
+        }
+        // A supply voltage cannot be negative: both readers refuse one.
+        let head = "t_s,thr_1,mag_x_ut,mag_y_ut,mag_z_ut,bat_v\n";
+        for (volts, read) in [
+            ("12.0", true),
+            ("0", true),
+            ("-0.001", false),
+            ("-1.5", false),
+        ] {
+            let text = format!("{head}0.0,0.1,1,2,3,12.1\n0.1,0.3,4,5,6,{volts}\n");
+            same_or_declined(&text);
+            let general = crate::recording_csv::read_general(text.as_bytes(), Path::new("t.csv"));
+            assert_eq!(general.is_ok(), read, "bat_v {volts}: {general:?}");
         }
     }
 

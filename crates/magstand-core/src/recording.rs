@@ -187,6 +187,17 @@ impl Recording {
         self.thr.iter().map(|m| m[row]).collect()
     }
 
+    /// The first magnetometer axis that reads the same value (within 1e-9 µT) on every one of
+    /// two or more rows, with that value: a stuck or disconnected sensor (often at zero). Its
+    /// residual has no noise at all, which any model fits and any effect "explains", so the
+    /// commands that fit it refuse it by name. None for fewer than two rows.
+    pub fn constant_magnetometer_axis(&self) -> Option<(usize, f64)> {
+        let first = self.mag_ut.first().filter(|_| self.len() >= 2)?;
+        (0..3)
+            .find(|&a| self.mag_ut.iter().all(|m| (m[a] - first[a]).abs() <= 1e-9))
+            .map(|a| (a, first[a]))
+    }
+
     /// Typical sample interval in seconds: the median of the intervals between rows (0 for
     /// fewer than two rows). Unlike the mean it ignores the long gaps of a log that holds
     /// several flights, which would make a 10 Hz log look like a 1 Hz one.

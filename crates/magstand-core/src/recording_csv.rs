@@ -398,6 +398,19 @@ fn read_from(reader: impl Read, path: &Path) -> Result<Recording, CoreError> {
                 d.push(num(c)?);
             }
         }
+        // A supply voltage cannot be negative: a replay below 0 V would run the motors
+        // backwards. (A sensor that did not measure has no column; 0 V is a dead supply.)
+        if let (Some(c), Some(v)) = (bat_v, rec.bat_v.as_ref().and_then(|v| v.last()))
+            && *v < 0.0
+        {
+            return Err(CoreError::BadCell {
+                path: path.to_path_buf(),
+                row,
+                column: "bat_v".into(),
+                found: shown(&record[c]),
+                expected: "a supply voltage of 0 V or more (leave the column out where the voltage was not measured)".into(),
+            });
+        }
         if let Some(imu) = rec.imu.as_mut() {
             // A missing group is stored as zeros only when its partner exists; `check` keeps lengths equal.
             imu.acc_mps2.push(match acc {

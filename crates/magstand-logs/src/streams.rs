@@ -108,6 +108,26 @@ impl VehicleStreams {
             ));
             self.bat_v = None;
         }
+        // A voltage that reads 0 (or below) on some samples only (a monitor not yet measuring
+        // at boot) is not measured there: those samples are left out, and the rows around them take
+        // the nearest measured voltage, not a supply at 0 V.
+        if let Some(v) = self.bat_v.as_mut() {
+            let before = v.values.len();
+            let kept: (Vec<f64>, Vec<f64>) = v
+                .t_s
+                .iter()
+                .zip(&v.values)
+                .filter(|(_, x)| **x > 0.5)
+                .map(|(t, x)| (*t, *x))
+                .unzip();
+            (v.t_s, v.values) = kept;
+            if v.values.len() < before {
+                self.notes.push(format!(
+                    "{source}: {} of {before} battery voltage samples read 0 V or below (not measured): left out, the rows around them take the nearest measured voltage",
+                    before - v.values.len()
+                ));
+            }
+        }
         if zero(&self.bat_a, 0.01) {
             self.notes.push(format!(
                 "{source}: the battery current is 0 throughout (not measured): bat_a is left out; fit on the throttle"
@@ -148,6 +168,44 @@ pub fn normalize_output(raw: f64, lo: f64, hi: f64) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A voltage that reads 0 on a few samples (a monitor not yet measuring at boot) keeps its
+    /// measured samples only, with a note; one at 0 throughout is left out whole.
+    #[test]
+    fn voltage_samples_at_zero_are_not_measured() {
+        let mut s = VehicleStreams {
+            bat_v: Some(Stream::from_pairs(
+                [
+                    (0.0, 0.0),
+                    (0.1, 0.0),
+                    (0.2, 12.4),
+                    (0.3, -1.0),
+                    (0.4, 12.3),
+                ]
+                .map(|(t, v)| (t, Some(v))),
+            )),
+            ..VehicleStreams::default()
+        };
+        s.drop_unmeasured_supply("log.bin");
+        let v = s.bat_v.as_ref().expect("measured samples remain");
+        assert_eq!(
+            (v.t_s.as_slice(), v.values.as_slice()),
+            (&[0.2, 0.4][..], &[12.4, 12.3][..])
+        );
+        assert!(
+            s.notes
+                .iter()
+                .any(|n| n.contains("3 of 5 battery voltage samples")),
+            "{:?}",
+            s.notes
+        );
+        let mut s = VehicleStreams {
+            bat_v: Some(Stream::from_pairs([(0.0, Some(0.0)), (0.1, Some(0.2))])),
+            ..VehicleStreams::default()
+        };
+        s.drop_unmeasured_supply("log.bin");
+        assert!(s.bat_v.is_none() && s.notes.len() == 1, "{:?}", s.notes);
+    }
 
     #[test]
     fn decimal_year_of_known_dates() {

@@ -125,6 +125,37 @@ impl SupplyParams {
         }
     }
 
+    /// Checks that the supply can drive `idle_load_a` (the avionics' and every driven motor's
+    /// idle current, A) at the start: a source resistance that would take its terminal voltage
+    /// to zero or below under that load describes no stand that runs, and the simulated
+    /// motors would draw their idle current at a negative voltage (a 12 V bench behind 10 ohm
+    /// read -7 V with four motors idling).
+    pub(crate) fn check_idle_load(&self, c: &Checker, idle_load_a: f64) -> Result<(), SimError> {
+        let (key, resistance_ohm) = match *self {
+            SupplyParams::Bench {
+                source_resistance_ohm,
+                ..
+            } => ("supply.source_resistance_ohm", source_resistance_ohm),
+            SupplyParams::Battery {
+                internal_resistance_ohm,
+                ..
+            } => ("supply.internal_resistance_ohm", internal_resistance_ohm),
+        };
+        let open_v = self.no_load_voltage_v();
+        let loaded_v = open_v - resistance_ohm * idle_load_a;
+        if loaded_v > 0.0 {
+            return Ok(());
+        }
+        Err(c.fail(
+            key,
+            resistance_ohm,
+            &format!(
+                "a resistance below {:.4} ohm: the supply's {open_v:.2} V cannot drive the stand's idle load of {idle_load_a:.2} A (supply.avionics_current_a and motors.count x motors.idle_current_a) through it, its terminal voltage would be {loaded_v:.2} V",
+                open_v / idle_load_a
+            ),
+        ))
+    }
+
     /// Terminal voltage at the start, with no load, V.
     pub fn no_load_voltage_v(&self) -> f64 {
         SupplyState::default().voltage_v(self, 0.0)

@@ -467,6 +467,11 @@ impl Scenario {
         )?;
         self.motors.check(&c)?;
         self.supply.check(&c)?;
+        self.supply.check_idle_load(
+            &c,
+            self.supply.avionics_current_a()
+                + self.motors.count as f64 * self.motors.idle_current_a,
+        )?;
         self.magnetometer.check(&c, self.physics_hz)?;
         // A stand whose wiring nobody wrote out has the default layout for its own motor
         // count: the default's four arms would leave a hexacopter's fifth and sixth motors

@@ -168,14 +168,10 @@ fn prepare(
     }
     // A stuck or disconnected sensor (an axis that reads the same in every row, often zero)
     // gives a residual with no noise at all, which any effect "explains": refuse it by name.
-    if let Some(first) = rec.mag_ut.first()
-        && let Some(a) =
-            (0..3).find(|&a| rec.mag_ut.iter().all(|m| (m[a] - first[a]).abs() <= 1e-9))
-    {
+    if let Some((a, value)) = rec.constant_magnetometer_axis() {
         return Err(bad(format!(
-            "the magnetometer does not respond: mag_{}_ut reads {:.4} µT in every one of the {} rows; expected readings that change with the commands and the noise",
+            "the magnetometer does not respond: mag_{}_ut reads {value:.4} µT in every one of the {} rows; expected readings that change with the commands and the noise",
             magstand_core::AXES[a],
-            first[a],
             rec.len()
         )));
     }
