@@ -233,6 +233,14 @@ pub fn import(
             what: "`motors` = 0: a multirotor has at least one motor".into(),
         });
     }
+    if let (Some(n), LogFormat::DataFlash) = (opts.outputs, log.format) {
+        return Err(LogsError::Unusable {
+            path: log.path.clone(),
+            what: format!(
+                "`outputs` = {n} names a PX4 actuator_outputs instance; a DataFlash log's motors are its RCOU channels (choose them with `motors`, located by SERVOn_FUNCTION)"
+            ),
+        });
+    }
     let streams = match log.format {
         LogFormat::Ulog => crate::px4::streams(log, opts),
         LogFormat::DataFlash => crate::ardupilot::streams(log, opts),

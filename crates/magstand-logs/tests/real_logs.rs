@@ -182,3 +182,22 @@ fn bad_requests_and_the_corrupt_log_are_clear_errors() {
         .to_string();
     assert!(e.contains("README.md") && e.contains("neither"), "{e}");
 }
+
+/// Regression: `outputs`, which names a PX4 `actuator_outputs` instance, was ignored without a
+/// word on a DataFlash log, whose motors are its RCOU channels; it is refused by name.
+#[test]
+fn a_px4_outputs_instance_is_refused_for_a_dataflash_log() {
+    let opts = ImportOptions {
+        outputs: Some(0),
+        ..ImportOptions::default()
+    };
+    let e = import_file(&log("ardupilot-log171-quad.bin"), &opts)
+        .expect_err("a PX4 option on a DataFlash log")
+        .to_string();
+    assert!(
+        e.contains("ardupilot-log171-quad.bin")
+            && e.contains("`outputs` = 0")
+            && e.contains("RCOU"),
+        "{e}"
+    );
+}
