@@ -12,15 +12,20 @@ use common::magstand;
 fn a_supply_that_cannot_drive_the_idle_load_is_refused_by_name() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("run");
-    let r = magstand(&[
-        "simulate",
-        "--scenario",
-        "builtin:bench-supply-stair",
-        "--out",
-        out.to_str().unwrap(),
-        "--set",
-        "supply.source_resistance_ohm=10",
-    ]);
+    // The 12 V bench stair behind a source resistance of `ohm`.
+    let simulate = |ohm: &str| {
+        let set = format!("supply.source_resistance_ohm={ohm}");
+        magstand(&[
+            "simulate",
+            "--scenario",
+            "builtin:bench-supply-stair",
+            "--out",
+            out.to_str().unwrap(),
+            "--set",
+            &set,
+        ])
+    };
+    let r = simulate("10");
     assert!(!r.ok, "simulated: {}", r.stdout);
     assert!(
         r.stderr.contains("supply.source_resistance_ohm")
@@ -32,15 +37,7 @@ fn a_supply_that_cannot_drive_the_idle_load_is_refused_by_name() {
     assert!(!out.exists(), "a refused run wrote {}", out.display());
 
     // Just within what the supply can drive, the run's voltage stays above zero throughout.
-    let r = magstand(&[
-        "simulate",
-        "--scenario",
-        "builtin:bench-supply-stair",
-        "--out",
-        out.to_str().unwrap(),
-        "--set",
-        "supply.source_resistance_ohm=6.3",
-    ]);
+    let r = simulate("6.3");
     assert!(r.ok, "{}", r.stderr);
     let rec = magstand_core::recording_csv::read(out.join("recording.csv")).unwrap();
     let lowest = rec
