@@ -31,7 +31,7 @@ const UT_PER_MILLIGAUSS: f64 = 0.1;
 pub fn streams(log: &LogContents, opts: &ImportOptions) -> Result<VehicleStreams, LogsError> {
     let mut out = VehicleStreams::default();
     let external = magnetometer(log, opts, &mut out)?;
-    motors(log, opts, &mut out)?;
+    let channels = motors(log, opts, &mut out)?;
     // A sensor that is not fitted logs 0 throughout; VehicleStreams::drop_unmeasured_supply
     // leaves it out after both formats are read.
     let (bat, bat_name) = match log.series("BAT", 0) {
@@ -43,23 +43,25 @@ pub fn streams(log: &LogContents, opts: &ImportOptions) -> Result<VehicleStreams
         out.bat_a = si_stream(log, b, bat_name, "Curr", Quantity::Current)?;
     }
     out.autopilot_throttle = autopilot_throttle(log, &mut out.notes);
-    // ESC telemetry (BLHeli, DroneCAN): one ESC message per instance, current in A, in motor
-    // order.
-    let motor_count = out.motors.values.first().map_or(0, |m| m.len());
+    // ESC telemetry (BLHeli, DroneCAN): one ESC message per instance, current in A. An
+    // instance is the servo output channel its ESC drives, counted from 0 (AP_ESC_Telem holds
+    // one per servo channel; AP_BLHeli reports each through its channel's index), so each
+    // motor's ESC is its channel's, not the motor's number.
     let esc_scale = field_units::scale(log, "ESC", "Curr", Quantity::Current)?;
-    out.esc_a = (0..motor_count.min(u8::MAX as usize) as u8)
-        .map_while(|i| {
+    out.esc_a = channels
+        .iter()
+        .map_while(|&c| {
             let k = esc_scale?;
-            log.series("ESC", i)?
+            log.series("ESC", u8::try_from(c - 1).ok()?)?
                 .stream("Curr", |a| (a.is_finite() && a >= 0.0).then_some(a * k))
                 .filter(|s| !s.is_empty())
         })
         .collect();
     if !out.esc_a.is_empty() {
+        let n = out.esc_a.len();
+        let instances: Vec<usize> = channels[..n].iter().map(|c| c - 1).collect();
         out.notes.push(format!(
-            "per-ESC currents from ESC for {} motors, written as esc_1_a..esc_{}_a",
-            out.esc_a.len(),
-            out.esc_a.len()
+            "per-ESC currents from ESC instances {instances:?} (the motors' output channels) for {n} motors, written as esc_1_a..esc_{n}_a"
         ));
     }
     if let Some(a) = log.series("ATT", 0)
@@ -440,11 +442,13 @@ fn autopilot_throttle(log: &LogContents, notes: &mut Vec<String>) -> Option<Stre
     Some(stream)
 }
 
+/// Reads the motor outputs into `out`; returns each motor's servo output channel (1-based), in
+/// motor order.
 fn motors(
     log: &LogContents,
     opts: &ImportOptions,
     out: &mut VehicleStreams,
-) -> Result<(), LogsError> {
+) -> Result<Vec<usize>, LogsError> {
     let Some(s) = log.series("RCOU", 0) else {
         return Err(LogsError::Missing {
             path: log.path.clone(),
@@ -572,7 +576,7 @@ fn motors(
             ),
         )
     }));
-    Ok(())
+    Ok(channels)
 }
 
 /// Motor count of an ArduPilot frame name as the firmware prints it ("QUAD/X", "HEXA",
