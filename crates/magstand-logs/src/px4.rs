@@ -135,20 +135,19 @@ pub fn streams(log: &LogContents, opts: &ImportOptions) -> Result<VehicleStreams
         out.bat_a = scalar(b, "current_a", |a| a >= 0.0);
     }
     if let Some(e) = log.series("esc_status", 0) {
-        // esc_count says how many of the fixed-size esc[] entries are in use.
-        let count = e
-            .field("esc_count")
-            .map_or(0, |c| c.iter().copied().fold(0.0, f64::max) as usize);
-        out.esc_a = (0..count.min(out.motors.values.first().map_or(0, |m| m.len())))
-            .map_while(|i| scalar(e, &format!("esc[{i}].esc_current"), |a| a >= 0.0))
+        let motor_count = out.motors.values.first().map_or(0, |m| m.len());
+        let entries = esc_entries_of_motors(e, motor_count);
+        out.esc_a = entries
+            .iter()
+            .map_while(|&i| scalar(e, &format!("esc[{i}].esc_current"), |a| a >= 0.0))
             .collect();
-    }
-    if !out.esc_a.is_empty() {
-        out.notes.push(format!(
-            "per-ESC currents from esc_status for {} motors, written as esc_1_a..esc_{}_a",
-            out.esc_a.len(),
-            out.esc_a.len()
-        ));
+        if !out.esc_a.is_empty() {
+            let n = out.esc_a.len();
+            out.notes.push(format!(
+                "per-ESC currents from esc_status entries {:?} for {n} motors, written as esc_1_a..esc_{n}_a",
+                &entries[..n]
+            ));
+        }
     }
     out.autopilot_throttle = autopilot_throttle(log, &mut out.notes);
     if let Some(a) = log.series("vehicle_attitude", 0) {
@@ -178,6 +177,33 @@ pub fn streams(log: &LogContents, opts: &ImportOptions) -> Result<VehicleStreams
 }
 
 /// A finite, valid scalar field as a stream; `None` when no message has one.
+/// The `esc_status` entry of each of the first `motor_count` motors, in motor order, as far
+/// as they are known. An entry names the motor it drives by `actuator_function` (101 for
+/// Motor1, PX4's `ACTUATOR_FUNCTION_MOTOR1`, from 1.13), which need not be its index: the
+/// ESCs of a CAN bus or a DShot output group come in the order of their addresses or outputs.
+/// Logs without that field (or with it 0, unknown) list them in motor order. Only the first
+/// `esc_count` entries are in use.
+fn esc_entries_of_motors(e: &Series, motor_count: usize) -> Vec<usize> {
+    const MOTOR1: f64 = 101.0;
+    let count = e
+        .field("esc_count")
+        .map_or(0, |c| c.iter().copied().fold(0.0, f64::max) as usize);
+    // Each entry's function: its largest logged value (0 while the ESC is unknown).
+    let functions: Vec<Option<f64>> = (0..count)
+        .map(|j| {
+            e.field(&format!("esc[{j}].actuator_function"))
+                .map(|f| f.iter().copied().fold(0.0, f64::max))
+        })
+        .collect();
+    if functions.iter().any(|f| f.is_some_and(|f| f >= MOTOR1)) {
+        (0..motor_count)
+            .map_while(|k| functions.iter().position(|f| *f == Some(MOTOR1 + k as f64)))
+            .collect()
+    } else {
+        (0..count.min(motor_count)).collect()
+    }
+}
+
 fn scalar(s: &Series, field: &str, valid: impl Fn(f64) -> bool) -> Option<Stream<f64>> {
     s.stream(field, |x| (x.is_finite() && valid(x)).then_some(x))
         .filter(|st| !st.is_empty())
@@ -637,6 +663,39 @@ fn position(log: &LogContents) -> Option<Position> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// An esc_status entry names its motor by `actuator_function` (101 = Motor1): ESCs listed
+    /// in the order of their bus addresses go to their own motors; a log without the field
+    /// (or with it 0) lists them in motor order; only `esc_count` entries are read.
+    #[test]
+    fn esc_entries_follow_their_actuator_function() {
+        let series = |fields: &[(&str, f64)]| Series {
+            t_s: vec![0.0],
+            fields: fields
+                .iter()
+                .map(|(name, v)| (name.to_string(), vec![*v]))
+                .collect(),
+        };
+        let permuted = series(&[
+            ("esc_count", 4.0),
+            ("esc[0].actuator_function", 103.0),
+            ("esc[1].actuator_function", 101.0),
+            ("esc[2].actuator_function", 104.0),
+            ("esc[3].actuator_function", 102.0),
+        ]);
+        assert_eq!(esc_entries_of_motors(&permuted, 4), [1, 3, 0, 2]);
+        // A hexacopter's fifth motor without an ESC that reports: the four known.
+        assert_eq!(esc_entries_of_motors(&permuted, 6), [1, 3, 0, 2]);
+        let unknown = series(&[
+            ("esc_count", 3.0),
+            ("esc[0].actuator_function", 0.0),
+            ("esc[1].actuator_function", 0.0),
+            ("esc[2].actuator_function", 0.0),
+        ]);
+        assert_eq!(esc_entries_of_motors(&unknown, 4), [0, 1, 2]);
+        let older = series(&[("esc_count", 4.0)]);
+        assert_eq!(esc_entries_of_motors(&older, 4), [0, 1, 2, 3]);
+    }
 
     /// Every PX4 rotation is a proper rotation; codes 0 to 15 are a yaw in steps of 45 degrees
     /// after (from 8 on) a roll of 180, and the others turn the axes as their names say.
