@@ -39,11 +39,14 @@ pub(crate) fn parse<T: DeserializeOwned>(
     version: u32,
     head: impl Fn(&T) -> (&str, u32),
 ) -> Result<T, DiagnoseError> {
-    let value: T = serde_json::from_str(text).map_err(|e| malformed(path, e.to_string()))?;
-    checked(value, path, format, version, head)
+    let value: serde_json::Value =
+        serde_json::from_str(text).map_err(|e| malformed(path, e.to_string()))?;
+    parse_value(value, path, format, version, head)
 }
 
-/// A document already parsed as JSON, read as [`parse`] reads text.
+/// A document already parsed as JSON, read as [`parse`] reads text. A document of another
+/// format (a model file given for a diagnosis) is named as such before its fields are read:
+/// the first field it lacks would say less.
 pub(crate) fn parse_value<T: DeserializeOwned>(
     value: serde_json::Value,
     path: &Path,
@@ -51,6 +54,23 @@ pub(crate) fn parse_value<T: DeserializeOwned>(
     version: u32,
     head: impl Fn(&T) -> (&str, u32),
 ) -> Result<T, DiagnoseError> {
+    match value.get("format").and_then(serde_json::Value::as_str) {
+        Some(f) if f != format => {
+            return Err(malformed(
+                path,
+                format!("this is a `{f}` document: expected a `{format}` one"),
+            ));
+        }
+        None => {
+            return Err(malformed(
+                path,
+                format!(
+                    "no `format` field: expected a `{format}` document (JSON with \"format\": \"{format}\")"
+                ),
+            ));
+        }
+        Some(_) => {}
+    }
     let value: T = serde_json::from_value(value).map_err(|e| malformed(path, e.to_string()))?;
     checked(value, path, format, version, head)
 }
