@@ -41,6 +41,10 @@ pub fn streams(log: &LogContents, opts: &ImportOptions) -> Result<VehicleStreams
     if let Some(b) = bat {
         out.bat_v = si_stream(log, b, bat_name, "Volt", Quantity::Voltage)?;
         out.bat_a = si_stream(log, b, bat_name, "Curr", Quantity::Current)?;
+        out.notes.extend(crate::streams::other_batteries(
+            &log.instances(bat_name),
+            bat_name,
+        ));
     }
     out.autopilot_throttle = autopilot_throttle(log, &mut out.notes);
     // ESC telemetry (BLHeli, DroneCAN): one ESC message per instance, current in A. An

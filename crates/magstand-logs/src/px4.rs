@@ -133,6 +133,10 @@ pub fn streams(log: &LogContents, opts: &ImportOptions) -> Result<VehicleStreams
         out.bat_v = scalar(b, "voltage_v", |v| v > 0.5);
         // PX4 logs -1 for a current it does not measure.
         out.bat_a = scalar(b, "current_a", |a| a >= 0.0);
+        out.notes.extend(crate::streams::other_batteries(
+            &log.instances("battery_status"),
+            "battery_status",
+        ));
     }
     if let Some(e) = log.series("esc_status", 0) {
         let motor_count = out.motors.values.first().map_or(0, |m| m.len());

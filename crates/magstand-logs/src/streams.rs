@@ -137,6 +137,19 @@ impl VehicleStreams {
     }
 }
 
+/// A note where a log has more batteries than the first (`instances` of its battery topic
+/// `source`): `bat_v` and `bat_a` are the first's, and where packs share the load the motors
+/// draw the sum of their currents, so a current fit on the first alone is off by the share.
+pub fn other_batteries(instances: &[u8], source: &str) -> Option<String> {
+    (instances.len() > 1).then(|| {
+        format!(
+            "{source} has {} instances {instances:?}: bat_v and bat_a are instance {}'s; where the packs share the load, the motors draw the sum of their currents (fit on the throttle, or sum the currents into bat_a)",
+            instances.len(),
+            instances[0]
+        )
+    })
+}
+
 /// Decimal year of a Unix time in seconds (UTC; leap seconds do not matter at this precision).
 pub fn decimal_year(unix_s: f64) -> f64 {
     let days = unix_s / 86_400.0;
@@ -168,6 +181,17 @@ pub fn normalize_output(raw: f64, lo: f64, hi: f64) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A second battery is said, with which one the columns hold; one battery says nothing.
+    #[test]
+    fn more_batteries_than_the_first_are_said() {
+        assert_eq!(other_batteries(&[0], "BAT"), None);
+        let note = other_batteries(&[0, 1], "battery_status").expect("a note");
+        assert!(
+            note.contains("2 instances [0, 1]") && note.contains("instance 0's"),
+            "{note}"
+        );
+    }
 
     /// A voltage that reads 0 on a few samples (a monitor not yet measuring at boot) keeps its
     /// measured samples only, with a note; one at 0 throughout is left out whole.
