@@ -1,7 +1,8 @@
 //! ArduPilot messages to magstand streams.
 //!
 //! * `MAG` (instance from its `I` field, or `MAG2`/`MAG3` in older logs): milligauss, already
-//!   offset-corrected and rotated to the body frame by the firmware. The default instance is
+//!   offset-corrected and rotated to the body frame by the firmware; a sample it marked
+//!   unhealthy (`Health` 0) is left out. The default instance is
 //!   the first internal compass (`COMPASS_EXTERNAL`, `COMPASS_EXTERN2`, `COMPASS_EXTERN3` = 0).
 //! * `RCOU` channels (`C1..` or, in older logs, `Ch1..`), motors located by
 //!   `SERVOn_FUNCTION` = 33.. when set, mapped to 0..1 with `MOT_PWM_MIN`/`MOT_PWM_MAX`, or
@@ -242,7 +243,20 @@ fn magnetometer(
         .mag_to_body
         .map_or(magstand_core::Mat3::identity(), |f| f.matrix());
     let applied = applied_motor_compensation(log, s, out.mag_slot, &mut out.notes)?;
+    // The firmware marks a sample of a compass it does not trust (`Health` 0: stale, or
+    // failing its consistency checks); such a sample is not a reading of the field.
+    let unhealthy = |r: usize| s.field("Health").is_some_and(|h| h[r] == 0.0);
+    let dropped = (0..s.len()).filter(|&r| unhealthy(r)).count();
+    if dropped > 0 {
+        out.notes.push(format!(
+            "magnetometer: {dropped} of {} samples the firmware marked unhealthy (MAG Health 0) left out",
+            s.len()
+        ));
+    }
     out.mag_ut = Stream::from_pairs((0..s.len()).map(|r| {
+        if unhealthy(r) {
+            return (s.t_s[r], None);
+        }
         let mut v = Vec3::new(axes[0][r] * k[0], axes[1][r] * k[1], axes[2][r] * k[2]);
         if let Some((offset, k)) = &applied {
             v -= added
