@@ -21,11 +21,11 @@ for f in "$D"/*.bin "$D"/*.ulg; do
     head=$(awk '
       /^[A-Za-z]+ log: / { rows = $3; motors = $5; rate = $0; sub(/.*\(/, "", rate); sub(/ magnetometer\)/, "", rate) }
       /^  firmware: / { fw = substr($0, 13) }
-      /^  magnetometer: / { mag = substr($0, 17); sub(/;.*/, "", mag) }
+      /^  magnetometer: / && !mag { mag = substr($0, 17); sub(/;.*/, "", mag) }
       /motor count from / { src = $0; sub(/.*motor count from /, "", src); motors = motors " (from " src ")" }
       /^  its compensation parameters: / { slot = $0; sub(/.*`mag_slot` = /, "", slot); sub(/;.*/, "", slot); mag = mag ", parameters `" slot "`" }
       END { printf "%s | %s, %s | %s | %s", fw ? fw : "not named", rows, rate, motors, mag }' "$T/i.txt")
-    other=$( { grep -E '^DAMAGED|0 throughout|^  gap in' "$T/i.txt" || true; } | sed 's/^  //; s/^DAMAGED FILE: /damaged: /; s/|/\//g' | cut -c1-240 | paste -sd '\t' - | sed 's/\t/; /g')
+    other=$( { grep -E '^DAMAGED|0 throughout|^  gap in|is disabled on this vehicle' "$T/i.txt" || true; } | sed 's/^  //; s/^DAMAGED FILE: /damaged: /; s/|/\//g' | cut -c1-240 | paste -sd '\t' - | sed 's/\t/; /g')
     ranges=$(awk -F, '
       NR == 1 { for (i = 1; i <= NF; i++) { if ($i == "bat_a") a = i; if ($i == "bat_v") v = i }; next }
       { if (a) { x = $a + 0; if (n == 0 || x < amin) amin = x; if (n == 0 || x > amax) amax = x }
@@ -148,6 +148,10 @@ What the tables say:
   PX4's line on held-out blocks on x (5.56 against 6.01, 5.95 against 6.42, 0.84 against 1.08
   uT) and within the noise on y and z; with 1 Hz rows and 90 degrees of heading or less the
   fitted Earth fields are uncertain, and `magstand fit` says so and suggests `--earth` with the World Magnetic Model.
+- On the FMU-v6C and the V6XRT the internal magnetometer, which the import picks by default as
+  the one the motors disturb most, is disabled (`CAL_MAGn_PRIO` = 0): those vehicles take their
+  heading from the external one, and a compensation exported for the internal one would change
+  nothing they fly on. Since 2026-12-07 the import says so.
 - compassmot's figures are withheld on every PX4 log: ArduPilot's running average needs about
   300 updates to forget its start, and these logs give it 52 to 116; the 10 Hz ArduPilot log
   gives it enough. (Before 2026-12-06 this table also showed them withheld on the ArduPilot

@@ -302,6 +302,27 @@ fn magnetometer(
     // Its compensation belongs to the calibration slot whose id is the sensor's.
     let calibration = slot(inst);
     out.mag_slot = calibration.map(|k| MagnetometerSlot::Px4CalMag(k as u8));
+    // A priority of 0 disables the sensor: PX4 takes no heading from it, and a compensation
+    // written for it changes nothing the vehicle flies on.
+    if let Some(k) = calibration
+        && log.param(&format!("CAL_MAG{k}_PRIO")) == Some(0.0)
+    {
+        let enabled: Vec<u8> = instances
+            .iter()
+            .copied()
+            .filter(|&i| {
+                slot(i).is_some_and(|j| log.param(&format!("CAL_MAG{j}_PRIO")) != Some(0.0))
+            })
+            .collect();
+        out.notes.push(format!(
+            "magnetometer: sensor_mag[{inst}] is disabled on this vehicle (CAL_MAG{k}_PRIO = 0): PX4 takes no heading from it, and its exported compensation changes nothing until it is enabled{}",
+            if enabled.is_empty() {
+                String::new()
+            } else {
+                format!("; the enabled ones are sensor_mag {} (`mag`)", list(&enabled))
+            }
+        ));
+    }
     let s = log.series("sensor_mag", inst).expect("listed instance");
     let axes: Vec<&[f64]> = ["x", "y", "z"]
         .iter()

@@ -92,6 +92,15 @@ fn px4_logs_pick_the_internal_compass_and_the_motor_outputs() {
         "{:?}",
         report.notes
     );
+    // Its internal sensor is disabled (CAL_MAG1_PRIO = 0): the vehicle flies on sensor_mag[0],
+    // and a compensation for the internal one would change nothing. The import says so.
+    assert!(
+        report.notes.iter().any(|n| n.contains("CAL_MAG1_PRIO = 0")
+            && n.contains("disabled")
+            && n.contains("instance(s) 0")),
+        "{:?}",
+        report.notes
+    );
     assert!(
         report
             .segments
