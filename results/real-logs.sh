@@ -25,7 +25,7 @@ for f in "$D"/*.bin "$D"/*.ulg; do
       /motor count from / { src = $0; sub(/.*motor count from /, "", src); motors = motors " (from " src ")" }
       /^  its compensation parameters: / { slot = $0; sub(/.*`mag_slot` = /, "", slot); sub(/;.*/, "", slot); mag = mag ", parameters `" slot "`" }
       END { printf "%s | %s, %s | %s | %s", fw ? fw : "not named", rows, rate, motors, mag }' "$T/i.txt")
-    other=$( { grep -E '^DAMAGED|0 throughout|^  gap in|is disabled on this vehicle' "$T/i.txt" || true; } | sed 's/^  //; s/^DAMAGED FILE: /damaged: /; s/|/\//g' | cut -c1-240 | paste -sd '\t' - | sed 's/\t/; /g')
+    other=$( { grep -E '^DAMAGED|0 throughout|^  gap in|is disabled on this vehicle|not used for heading' "$T/i.txt" || true; } | sed 's/^  //; s/^DAMAGED FILE: /damaged: /; s/|/\//g' | cut -c1-240 | paste -sd '\t' - | sed 's/\t/; /g')
     ranges=$(awk -F, '
       NR == 1 { for (i = 1; i <= NF; i++) { if ($i == "bat_a") a = i; if ($i == "bat_v") v = i }; next }
       { if (a) { x = $a + 0; if (n == 0 || x < amin) amin = x; if (n == 0 || x > amax) amax = x }

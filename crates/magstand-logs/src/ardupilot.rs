@@ -218,6 +218,16 @@ fn magnetometer(
         }
     ));
     out.mag_slot = compass_slot(log, inst, &mut out.notes);
+    // A compass the firmware does not use for heading (`COMPASS_USE*` 0): a compensation
+    // written for it changes nothing the vehicle flies on.
+    if let Some(MagnetometerSlot::ArduPilotCompass(n)) = out.mag_slot {
+        let use_param = format!("COMPASS_USE{}", compass_suffix(n as usize));
+        if log.param(&use_param) == Some(0.0) {
+            out.notes.push(format!(
+                "magnetometer: compass {n} is not used for heading on this vehicle ({use_param} = 0): its exported compensation changes nothing until it is"
+            ));
+        }
+    }
     let s = log.series("MAG", inst).expect("listed instance");
     let axes: Vec<&[f64]> = ["MagX", "MagY", "MagZ"]
         .iter()

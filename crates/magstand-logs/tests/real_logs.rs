@@ -210,3 +210,24 @@ fn a_px4_outputs_instance_is_refused_for_a_dataflash_log() {
         "{e}"
     );
 }
+
+/// log171's third compass is not used for heading (`COMPASS_USE3` = 0): a compensation for it
+/// would change nothing the vehicle flies on, and the import says so; its second (the default)
+/// is used, and nothing is said.
+#[test]
+fn a_compass_the_firmware_does_not_use_is_said() {
+    let note = |mag: u8| {
+        let opts = ImportOptions {
+            mag: Some(mag),
+            ..ImportOptions::default()
+        };
+        let (_, report) = import_file(&log("ardupilot-log171-quad.bin"), &opts).unwrap();
+        report
+            .notes
+            .into_iter()
+            .find(|n| n.contains("not used for heading"))
+    };
+    let third = note(2).expect("compass 3 is not used");
+    assert!(third.contains("COMPASS_USE3 = 0"), "{third}");
+    assert_eq!(note(1), None);
+}
