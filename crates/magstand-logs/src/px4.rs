@@ -180,7 +180,6 @@ pub fn streams(log: &LogContents, opts: &ImportOptions) -> Result<VehicleStreams
     Ok(out)
 }
 
-/// A finite, valid scalar field as a stream; `None` when no message has one.
 /// The `esc_status` entry of each of the first `motor_count` motors, in motor order, as far
 /// as they are known. An entry names the motor it drives by `actuator_function` (101 for
 /// Motor1, PX4's `ACTUATOR_FUNCTION_MOTOR1`, from 1.13), which need not be its index: the
@@ -208,6 +207,7 @@ fn esc_entries_of_motors(e: &Series, motor_count: usize) -> Vec<usize> {
     }
 }
 
+/// A finite, valid scalar field as a stream; `None` when no message has one.
 fn scalar(s: &Series, field: &str, valid: impl Fn(f64) -> bool) -> Option<Stream<f64>> {
     s.stream(field, |x| (x.is_finite() && valid(x)).then_some(x))
         .filter(|st| !st.is_empty())
