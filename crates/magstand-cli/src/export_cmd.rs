@@ -133,17 +133,13 @@ fn export_physics(a: &ExportArgs, model: &magstand_diagnose::AugmentedModel) -> 
         Target::Px4 | Target::Ardupilot => {
             let line = line_over_prediction(&dist, reference, &rec, &origin, input)?;
             eprint!("{}", describe(&line));
-            let frame = model_frame(
-                model.magnetometer,
-                model.magnetometer_to_body,
+            let frame = compensation_frame(
+                a,
+                fitted_on,
+                (model.magnetometer, model.magnetometer_to_body),
                 Some((&rec, path)),
             )?;
-            let frame = compensation_frame(a, fitted_on, frame)?;
-            if a.target == Target::Px4 {
-                px4_params(&line, instance, frame.as_ref())?
-            } else {
-                ardupilot_params(&line, instance, frame.as_ref())?
-            }
+            line_params(a, &line, instance, frame)?
         }
         _ => {
             let fit = per_motor_over_prediction(&dist, reference, &rec, &origin)?;
@@ -231,32 +227,25 @@ fn instance(a: &ExportArgs, fitted_on: Option<MagnetometerSlot>) -> Result<usize
     Ok(chosen)
 }
 
-/// The transform that took the readings of the magnetometer a model describes to the body
-/// frame: the model's own where it names its magnetometer (`slot`, `frame`), else that of the
-/// recording the line is fitted over, which then names the magnetometer.
-fn model_frame(
-    slot: Option<MagnetometerSlot>,
-    frame: Option<SensorToBody>,
-    recording: Option<(&magstand_core::Recording, &std::path::Path)>,
-) -> Result<Option<SensorToBody>> {
-    Ok(match (slot, recording) {
-        (None, Some((rec, path))) => SensorToBody::of_recording(rec, path)?,
-        _ => frame,
-    })
-}
-
 /// The frame the target autopilot adds the compensation in, as the transform to the body
-/// frame the model was fitted in ([`Autopilot::compensation_frame`]: `frame`, the model's
-/// `magnetometer_to_body`, where the model's magnetometer `fitted_on` is the target's). PX4
-/// adds it before its calibration's rotation and scale: a model of a PX4 sensor that does not
-/// carry that transform cannot be written in the sensor's frame, and its body-frame
-/// coefficients would be wrong in sign or axis on a turned board. A model of an ArduPilot
-/// compass exported to PX4 takes the PX4 sensor's frame for the body frame, with a warning.
+/// frame the model was fitted in ([`Autopilot::compensation_frame`]). The model's own transform
+/// (`frame`, its `magnetometer_to_body`) where it names its magnetometer (`slot`), else that of
+/// the `recording` the line is fitted over, which then names the magnetometer; it is used where
+/// that magnetometer `fitted_on` is the target's. PX4 adds the compensation before its
+/// calibration's rotation and scale: a model of a PX4 sensor that does not carry that
+/// transform cannot be written in the sensor's frame, and its body-frame coefficients would be
+/// wrong in sign or axis on a turned board. A model of an ArduPilot compass exported to PX4
+/// takes the PX4 sensor's frame for the body frame, with a warning.
 fn compensation_frame(
     a: &ExportArgs,
     fitted_on: Option<MagnetometerSlot>,
-    frame: Option<SensorToBody>,
+    (slot, frame): (Option<MagnetometerSlot>, Option<SensorToBody>),
+    recording: Option<(&magstand_core::Recording, &std::path::Path)>,
 ) -> Result<Option<SensorToBody>> {
+    let frame = match (slot, recording) {
+        (None, Some((rec, path))) => SensorToBody::of_recording(rec, path)?,
+        _ => frame,
+    };
     let autopilot = match a.target {
         Target::Px4 => Autopilot::Px4,
         _ => Autopilot::ArduPilot,
@@ -272,6 +261,20 @@ fn compensation_frame(
         _ => {}
     }
     Ok(autopilot.compensation_frame(fitted_on, frame))
+}
+
+/// The line's parameter file for the target autopilot (`--to px4` or `--to ardupilot`), its
+/// coefficients in `frame` ([`compensation_frame`]).
+fn line_params(
+    a: &ExportArgs,
+    line: &magstand_logs::export::LinearFit,
+    instance: usize,
+    frame: Option<SensorToBody>,
+) -> Result<String> {
+    Ok(match a.target {
+        Target::Px4 => px4_params(line, instance, frame.as_ref())?,
+        _ => ardupilot_params(line, instance, frame.as_ref())?,
+    })
 }
 
 /// Why a model of PX4 sensor `slot` that does not carry its frame cannot give PX4's
@@ -405,19 +408,15 @@ pub fn run(a: ExportArgs) -> Result<()> {
         Target::CAdaptive => c_adaptive(&model, &adapt_config)?,
         Target::RustAdaptive => rust_adaptive(&model, &adapt_config)?,
         Target::Px4 | Target::Ardupilot => {
-            let frame = model_frame(
-                model.magnetometer,
-                model.magnetometer_to_body,
+            let frame = compensation_frame(
+                &a,
+                fitted_on,
+                (model.magnetometer, model.magnetometer_to_body),
                 recording.as_ref().zip(a.recording.as_deref()),
             )?;
-            let frame = compensation_frame(&a, fitted_on, frame)?;
             let line = linear_approximation(&model, input, span)?;
             eprint!("{}", describe(&line));
-            if a.target == Target::Px4 {
-                px4_params(&line, instance, frame.as_ref())?
-            } else {
-                ardupilot_params(&line, instance, frame.as_ref())?
-            }
+            line_params(&a, &line, instance, frame)?
         }
         Target::ArdupilotPerMotor => {
             let Some(rec) = &recording else {
