@@ -507,15 +507,11 @@ pub fn run(a: FitArgs) -> Result<()> {
     // A stuck sensor fits any model with no error at all: a model of nothing, and firmware
     // parameters of zero that look like a result. (Fewer rows than a fit takes are refused
     // by the fit, with their count.)
-    if let Some((axis, value)) = rec
-        .constant_magnetometer_axis()
+    if let Some(why) = rec
+        .unresponsive_magnetometer()
         .filter(|_| rec.len() >= magstand_ident::MIN_ROWS)
     {
-        bail!(
-            "{origin}: the magnetometer does not respond: mag_{}_ut reads {value:.4} µT in every one of the {} rows; expected readings that change with the commands and the noise",
-            AXES[axis],
-            rec.len()
-        );
+        bail!("{origin}: {why}");
     }
     let slot = MagnetometerSlot::of_recording(&rec, &a.recording)?;
     let to_body = SensorToBody::of_recording(&rec, &a.recording)?;

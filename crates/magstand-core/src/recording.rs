@@ -187,15 +187,20 @@ impl Recording {
         self.thr.iter().map(|m| m[row]).collect()
     }
 
-    /// The first magnetometer axis that reads the same value (within 1e-9 µT) on every one of
-    /// two or more rows, with that value: a stuck or disconnected sensor (often at zero). Its
-    /// residual has no noise at all, which any model fits and any effect "explains", so the
-    /// commands that fit it refuse it by name. None for fewer than two rows.
-    pub fn constant_magnetometer_axis(&self) -> Option<(usize, f64)> {
+    /// Why the magnetometer does not respond, where an axis reads the same value (within
+    /// 1e-9 µT) on every one of two or more rows: a stuck or disconnected sensor (often at
+    /// zero). Its residual has no noise at all, which any model fits and any effect
+    /// "explains", so the commands that fit it refuse it with this. None for fewer than two
+    /// rows, or where every axis moves.
+    pub fn unresponsive_magnetometer(&self) -> Option<String> {
         let first = self.mag_ut.first().filter(|_| self.len() >= 2)?;
-        (0..3)
-            .find(|&a| self.mag_ut.iter().all(|m| (m[a] - first[a]).abs() <= 1e-9))
-            .map(|a| (a, first[a]))
+        let a = (0..3).find(|&a| self.mag_ut.iter().all(|m| (m[a] - first[a]).abs() <= 1e-9))?;
+        Some(format!(
+            "the magnetometer does not respond: mag_{}_ut reads {:.4} µT in every one of the {} rows; expected readings that change with the commands and the noise",
+            crate::AXES[a],
+            first[a],
+            self.len()
+        ))
     }
 
     /// Typical sample interval in seconds: the median of the intervals between rows (0 for

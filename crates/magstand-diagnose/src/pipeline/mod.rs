@@ -168,12 +168,8 @@ fn prepare(
     }
     // A stuck or disconnected sensor (an axis that reads the same in every row, often zero)
     // gives a residual with no noise at all, which any effect "explains": refuse it by name.
-    if let Some((a, value)) = rec.constant_magnetometer_axis() {
-        return Err(bad(format!(
-            "the magnetometer does not respond: mag_{}_ut reads {value:.4} µT in every one of the {} rows; expected readings that change with the commands and the noise",
-            magstand_core::AXES[a],
-            rec.len()
-        )));
+    if let Some(why) = rec.unresponsive_magnetometer() {
+        return Err(bad(why));
     }
     let split = held_out_split(&rec.t_s, cfg.block_s, cfg.holdout_every);
     if split.holdout_blocks() < MIN_HOLDOUT_BLOCKS || split.fit_rows() < 50 {
