@@ -72,6 +72,11 @@ impl SensorToBody {
         Ok(Self { rows })
     }
 
+    /// The transform of matrix `m`, or why it cannot be one ([`SensorToBody::new`]).
+    pub fn from_matrix(m: &crate::Mat3) -> Result<Self, String> {
+        Self::new(std::array::from_fn(|r| std::array::from_fn(|c| m[(r, c)])))
+    }
+
     /// The matrix as a nalgebra matrix.
     pub fn matrix(&self) -> crate::Mat3 {
         crate::Mat3::from_fn(|r, c| self.rows[r][c])

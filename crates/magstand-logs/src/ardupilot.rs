@@ -255,7 +255,8 @@ fn magnetometer(
     let applied = applied_motor_compensation(log, s, out.mag_slot, &mut out.notes)?;
     // The firmware marks a sample of a compass it does not trust (`Health` 0: stale, or
     // failing its consistency checks); such a sample is not a reading of the field.
-    let unhealthy = |r: usize| s.field("Health").is_some_and(|h| h[r] == 0.0);
+    let health = s.field("Health");
+    let unhealthy = |r: usize| health.is_some_and(|h| h[r] == 0.0);
     let dropped = (0..s.len()).filter(|&r| unhealthy(r)).count();
     if dropped > 0 {
         out.notes.push(format!(

@@ -82,8 +82,7 @@ impl Px4MagCalibration {
             true => magstand_core::Mat3::identity(),
             false => crate::px4::px4_scale(self.scale.map(f), self.off_diagonal.map(f)),
         };
-        let m = rotation.to_rotation_matrix().into_inner() * scale;
-        SensorToBody::new(std::array::from_fn(|r| std::array::from_fn(|c| m[(r, c)])))
+        SensorToBody::from_matrix(&(rotation.to_rotation_matrix().into_inner() * scale))
     }
 }
 

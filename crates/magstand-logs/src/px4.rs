@@ -386,10 +386,9 @@ fn magnetometer(
             });
             // PX4 adds its power compensation before this transform: `export` maps the
             // body-frame coefficients back through it.
-            let rows = rot.to_rotation_matrix().into_inner() * scale;
-            out.mag_to_body = match SensorToBody::new(std::array::from_fn(|r| {
-                std::array::from_fn(|c| rows[(r, c)])
-            })) {
+            out.mag_to_body = match SensorToBody::from_matrix(
+                &(rot.to_rotation_matrix().into_inner() * scale),
+            ) {
                 Ok(frame) => {
                     if !frame.is_identity() {
                         out.notes.push(format!(
