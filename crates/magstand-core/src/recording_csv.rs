@@ -62,6 +62,7 @@ pub(crate) fn read_general(bytes: &[u8], path: &Path) -> Result<Recording, CoreE
 /// Column lookup over one header, with the file name for its errors.
 struct Header<'a> {
     path: &'a Path,
+    names: &'a [String],
     index: HashMap<String, usize>,
     used: Vec<bool>,
 }
@@ -74,11 +75,17 @@ impl Header<'_> {
     }
 
     fn require(&mut self, name: &str, expected: &str) -> Result<usize, CoreError> {
-        self.find(name).ok_or_else(|| CoreError::MissingColumn {
+        self.find(name).ok_or_else(|| self.missing(name, expected))
+    }
+
+    /// The error for a column `name` the header lacks, with what the header looks like where
+    /// that explains it.
+    fn missing(&self, name: &str, expected: &str) -> CoreError {
+        CoreError::MissingColumn {
             path: self.path.to_path_buf(),
             column: name.to_string(),
-            expected: expected.to_string(),
-        })
+            expected: format!("{expected}{}", header_hint(self.names, name)),
+        }
     }
 
     /// A group of three axis columns `{prefix}{x,y,z}{suffix}`: all present, or none.
@@ -94,6 +101,34 @@ impl Header<'_> {
         }
         Ok(Some(out))
     }
+}
+
+/// Why a header may lack column `name` though the file holds it: another delimiter, a line
+/// before the header, names in another case. Empty where none of those is seen.
+fn header_hint(names: &[String], name: &str) -> String {
+    let first = names.first().map(String::as_str).unwrap_or("");
+    if first.starts_with('#') {
+        return format!(
+            "; line 1 is `{}`: the first line must be the header (t_s, thr_1.., mag_x_ut, ...), \
+             and comment lines are not read",
+            shown(first)
+        );
+    }
+    if names.len() == 1 {
+        for (delimiter, said) in [(';', "`;`"), ('\t', "tabs"), (' ', "spaces")] {
+            if first.contains(delimiter) {
+                return format!(
+                    "; the header is one column, `{}`: its names are separated by {said}, and a \
+                     recording's by commas",
+                    shown(first)
+                );
+            }
+        }
+    }
+    if let Some(other) = names.iter().find(|n| n.eq_ignore_ascii_case(name)) {
+        return format!("; the header has `{other}`: column names are lower case");
+    }
+    String::new()
 }
 
 /// The largest magnitude a cell of `column` may have. Far beyond any real sensor (a
@@ -210,6 +245,7 @@ pub(crate) fn layout(names: Vec<String>, path: &Path) -> Result<Layout, CoreErro
     }
     let mut h = Header {
         path,
+        names: &names,
         used: vec![false; names.len()],
         index,
     };
@@ -244,11 +280,7 @@ pub(crate) fn layout(names: Vec<String>, path: &Path) -> Result<Layout, CoreErro
     let overall_only = !h.index.contains_key("thr_1");
     let mag_cols = h
         .triple("mag_", "_ut")?
-        .ok_or_else(|| CoreError::MissingColumn {
-            path: path.to_path_buf(),
-            column: "mag_x_ut".into(),
-            expected: "magnetometer x, y, z in microtesla".into(),
-        })?;
+        .ok_or_else(|| h.missing("mag_x_ut", "magnetometer x, y, z in microtesla"))?;
     let bat_v = h.find("bat_v");
     let bat_a = h.find("bat_a");
     let temp_c = h.find("temp_c");
@@ -747,6 +779,23 @@ mod tests {
         assert!(e.contains("r.csv") && e.contains("mag_z_ut"), "{e}");
         let e = err("t_s,mag_x_ut,mag_y_ut,mag_z_ut\n0,1,2,3\n");
         assert!(e.contains("`thr`"), "{e}");
+    }
+
+    #[test]
+    fn a_header_that_is_not_a_recordings_says_why() {
+        let e = err("t_s;thr;mag_x_ut;mag_y_ut;mag_z_ut\n0;0;1;2;3\n");
+        assert!(e.contains("`t_s`") && e.contains("separated by `;`"), "{e}");
+        let e = err("t_s\tthr\tmag_x_ut\n0\t0\t1\n");
+        assert!(e.contains("separated by tabs"), "{e}");
+        let e = err("# bench 3\nt_s,thr,mag_x_ut,mag_y_ut,mag_z_ut\n0,0,1,2,3\n");
+        assert!(e.contains("line 1 is `# bench 3`"), "{e}");
+        let e = err("T_S,THR,MAG_X_UT,MAG_Y_UT,MAG_Z_UT\n0,0,1,2,3\n");
+        assert!(e.contains("the header has `T_S`"), "{e}");
+        let e = err("t_s,thr,MAG_X_UT,MAG_Y_UT,MAG_Z_UT\n0,0,1,2,3\n");
+        assert!(e.contains("`mag_x_ut`") && e.contains("`MAG_X_UT`"), "{e}");
+        // A header that merely lacks the column gets no guess.
+        let e = err("t_s,thr,mag_x_ut,mag_y_ut\n0,0,1,2\n");
+        assert!(!e.contains(';'), "{e}");
     }
 
     #[test]
