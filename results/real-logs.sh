@@ -145,8 +145,11 @@ What the tables say:
   sensor offset stands in for the motors-off reading, because their input comes down near zero
   (0.3-0.6 A, throttle 0.002). The UAVCAN log never goes below 27 A, so the offset would be an
   extrapolation, and the fit refuses. On those three flights magstand's model is better than
-  PX4's line on held-out blocks on x (5.56 against 6.01, 5.95 against 6.42, 0.84 against 1.08
-  uT) and within the noise on y and z; with 1 Hz rows and 90 degrees of heading or less the
+  PX4's line on held-out blocks on x (3.62 against 4.33, 3.65 against 5.46, 1.13 against 1.21
+  uT) and within the noise on y and z (at 1 Hz each row is a block of its own, every fifth held
+  out; before 2026-12-07 rows a little more than a block apart skipped a block, and the
+  held-out rows were fewer and irregular: 5.56 against 6.01, 5.95 against 6.42, 0.84 against
+  1.08 uT then); with 1 Hz rows and 90 degrees of heading or less the
   fitted Earth fields are uncertain, and `magstand fit` says so and suggests `--earth` with the World Magnetic Model.
 - On the FMU-v6C and the V6XRT the internal magnetometer, which the import picks by default as
   the one the motors disturb most, is disabled (`CAL_MAGn_PRIO` = 0): those vehicles take their

@@ -513,6 +513,9 @@ pub fn run(a: FitArgs) -> Result<()> {
     {
         bail!("{origin}: {why}");
     }
+    for doubt in rec.unit_doubts() {
+        eprintln!("warning: {origin}: {doubt}");
+    }
     let slot = MagnetometerSlot::of_recording(&rec, &a.recording)?;
     let to_body = SensorToBody::of_recording(&rec, &a.recording)?;
     // Printed after the model is written: a reader that closes stdout early must not cost it.

@@ -53,15 +53,21 @@ impl Split {
     pub fn new(t_s: &[f64], block_s: f64, holdout_every: usize) -> Split {
         let starts = crate::rows_after_gaps(t_s);
         let active = time_with_data_s(t_s, &starts);
+        // Blocks are numbered in the order they hold rows: where rows lie further apart than
+        // a block (a slow log, or times in milliseconds), numbering by time alone skipped
+        // blocks in step with the share, and rows 10 blocks apart held none out.
         let mut block: Vec<usize> = Vec::with_capacity(t_s.len());
-        let mut offset = 0;
+        let mut last_time_block = 0;
         for (r, a) in active.iter().enumerate() {
             let b = (a / block_s).floor() as usize;
             // After a gap, a new block even where the closed time stays within the last one.
-            if r > 0 && starts.binary_search(&r).is_ok() && b + offset <= block[r - 1] {
-                offset = block[r - 1] + 1 - b;
-            }
-            block.push(b + offset);
+            let new_block = r > 0 && (b != last_time_block || starts.binary_search(&r).is_ok());
+            block.push(match block.last() {
+                Some(&prev) if new_block => prev + 1,
+                Some(&prev) => prev,
+                None => 0,
+            });
+            last_time_block = b;
         }
         let every = holdout_every.max(1);
         let holdout = block.iter().map(|b| b % every == every - 1).collect();
@@ -129,5 +135,14 @@ mod tests {
             .collect::<std::collections::BTreeSet<_>>()
             .len();
         assert!((149..=152).contains(&blocks), "{blocks} blocks");
+    }
+
+    #[test]
+    fn rows_further_apart_than_a_block_are_held_out_in_turn() {
+        // A row every 10 s in blocks of 1 s: one row a block, every fifth held out.
+        let t: Vec<f64> = (0..300).map(|k| k as f64 * 10.0).collect();
+        let s = Split::new(&t, 1.0, 5);
+        assert_eq!(s.holdout_blocks(), 60, "blocks {:?}", &s.block[..12]);
+        assert!(s.holdout[4] && !s.holdout[5] && s.holdout[9]);
     }
 }

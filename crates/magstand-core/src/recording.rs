@@ -203,6 +203,36 @@ impl Recording {
         ))
     }
 
+    /// Doubts about the units of `t_s` and `mag_*_ut`, one sentence each: rows more than 2 s
+    /// apart (median), slower than any motor or field change this tool models, as times in
+    /// milliseconds or microseconds would be; a field whose median magnitude is beyond a
+    /// factor 5 of the Earth's (22 to 67 µT at the surface), as readings in gauss, milligauss
+    /// or nanotesla would be. Warnings, not errors: a stand may cancel the Earth's field, and
+    /// a log may be slow. Empty where neither is seen.
+    pub fn unit_doubts(&self) -> Vec<String> {
+        let mut doubts = Vec::new();
+        let interval_s = self.typical_interval_s();
+        if interval_s > 2.0 {
+            doubts.push(format!(
+                "rows are {interval_s:.4} s apart (median): t_s is in seconds, and times in \
+                 milliseconds or microseconds would look like this"
+            ));
+        }
+        if self.len() >= 2 {
+            let mut norms: Vec<f64> = self.mag_ut.iter().map(|m| m.norm()).collect();
+            let mid = norms.len() / 2;
+            let median_ut = *norms.select_nth_unstable_by(mid, f64::total_cmp).1;
+            if !(22.0 / 5.0..=67.0 * 5.0).contains(&median_ut) {
+                doubts.push(format!(
+                    "the field's median magnitude is {median_ut:.4} µT, where the Earth's is 22 \
+                     to 67 µT: mag_*_ut is in microtesla (1 gauss = 100 µT, 1 mG = 0.1 µT, \
+                     1 nT = 0.001 µT), unless the stand cancels or adds a field"
+                ));
+            }
+        }
+        doubts
+    }
+
     /// Typical sample interval in seconds: the median of the intervals between rows (0 for
     /// fewer than two rows). Unlike the mean it ignores the long gaps of a log that holds
     /// several flights, which would make a 10 Hz log look like a 1 Hz one.

@@ -76,6 +76,8 @@ pub(crate) fn diagnose_with(
 ) -> Result<Diagnosis, DiagnoseError> {
     let cfg = config.params();
     observer.stage(Stage::Baseline);
+    // Of the recording as given: a flight's baseline takes the Earth's field out.
+    let unit_doubts = rec.unit_doubts();
     let flight = flight::flight_baseline(rec, origin)?;
     let rec = flight.as_ref().map_or(rec, |f| &f.recording);
     // A motor count nobody stated is the recording's own.
@@ -132,6 +134,11 @@ pub(crate) fn diagnose_with(
         // The flight's doubts first: they qualify everything after them.
         d.warnings.splice(0..0, f.warnings);
     }
+    // And the units' before those.
+    d.warnings.splice(
+        0..0,
+        unit_doubts.into_iter().map(|w| format!("{origin}: {w}")),
+    );
     Ok(d)
 }
 
