@@ -70,6 +70,11 @@ pub fn run(a: ImportArgs) -> Result<()> {
         _ => bail!("give one of --ulog and --dataflash"),
     };
     files::refuse_overwriting_inputs(&[path], &[&a.out])?;
+    for (flag, v) in [("--from-s", a.from_s), ("--to-s", a.to_s)] {
+        if let Some(v) = v.filter(|v| !v.is_finite()) {
+            bail!("{flag} {v}: expected a finite time on the log's clock, s");
+        }
+    }
     if let (Some(f), Some(t)) = (a.from_s, a.to_s)
         && !(t > f)
     {

@@ -211,3 +211,23 @@ fn a_clock_in_microseconds_is_diagnosed_in_bounded_time() {
     assert!(r.ok, "{}", r.stderr);
     assert!(r.stdout.contains("verdict"), "{}", r.stdout);
 }
+
+#[test]
+fn an_import_window_that_is_not_a_time_is_refused() {
+    // Before, `--from-s nan` compared false with every time and was reported as every sample
+    // "dropped outside the window".
+    let log = common::test_data("real-logs", "px4-fmuv3-uavcan-esc-status.ulg");
+    for (flag, value) in [("--from-s", "nan"), ("--to-s", "inf"), ("--from-s", "-inf")] {
+        let arg = format!("{flag}={value}");
+        refused(
+            &["import", "--ulog", &log, &arg, "--out", "{out}"],
+            &[flag, "expected a finite time"],
+        );
+    }
+    refused(
+        &[
+            "import", "--ulog", &log, "--from-s", "300", "--to-s", "200", "--out", "{out}",
+        ],
+        &["the window is empty"],
+    );
+}
