@@ -231,3 +231,18 @@ fn an_import_window_that_is_not_a_time_is_refused() {
         &["the window is empty"],
     );
 }
+
+#[test]
+fn a_flight_log_given_as_a_recording_is_named_with_the_import_that_reads_it() {
+    // Before, the CSV parser's complaint: "row 0: malformed CSV: ... invalid utf-8".
+    let ulog = common::test_data("real-logs", "px4-fmuv3-uavcan-esc-status.ulg");
+    refused(
+        &["fit", "--recording", &ulog, "--model-out", "{out}"],
+        &["a PX4 ULog log, not a recording", "magstand import --ulog"],
+    );
+    let bin = common::test_data("real-logs", "ardupilot-copter462-pixhawk4-first80k.bin");
+    refused(
+        &["diagnose", "--recording", &bin, "--json", "{out}"],
+        &["an ArduPilot DataFlash log", "magstand import --dataflash"],
+    );
+}

@@ -80,6 +80,17 @@ pub enum CoreError {
         /// Why they are needed.
         why: String,
     },
+    /// The file is binary: a flight log or something else, where a recording (CSV text) was
+    /// expected.
+    #[error("{path}: {what}, not a recording (CSV text){hint}")]
+    NotText {
+        /// The file concerned.
+        path: PathBuf,
+        /// What the file looks like.
+        what: String,
+        /// How to make a recording of it, where magstand can.
+        hint: String,
+    },
     /// Columns inside one in-memory recording have different lengths.
     #[error("recording column `{column}` has {found} values but the recording has {expected} rows")]
     ColumnLength {

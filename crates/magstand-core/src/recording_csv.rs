@@ -47,10 +47,40 @@ pub fn read_str(text: &str, origin: impl AsRef<Path>) -> Result<Recording, CoreE
 }
 
 fn read_bytes(bytes: &[u8], path: &Path) -> Result<Recording, CoreError> {
+    refuse_binary(bytes, path)?;
     match crate::fast_csv::read(bytes, path) {
         Some(rec) => Ok(rec),
         None => read_general(bytes, path),
     }
+}
+
+/// A flight log or another binary file where a recording was expected, said as such rather
+/// than as the CSV parser's complaint about UTF-8 at byte 0. A flight log is named by its
+/// magic bytes (the ones `magstand import` checks), anything else by a NUL byte near its
+/// start, which no CSV text holds.
+fn refuse_binary(bytes: &[u8], path: &Path) -> Result<(), CoreError> {
+    let log = |what: &str, flag: &str| CoreError::NotText {
+        path: path.to_path_buf(),
+        what: what.into(),
+        hint: format!(
+            "; `magstand import {flag} {} --out R.csv` makes one from it",
+            path.display()
+        ),
+    };
+    if bytes.starts_with(b"ULog") {
+        return Err(log("a PX4 ULog log", "--ulog"));
+    }
+    if bytes.starts_with(&[0xA3, 0x95]) {
+        return Err(log("an ArduPilot DataFlash log", "--dataflash"));
+    }
+    if bytes.iter().take(4096).any(|&b| b == 0) {
+        return Err(CoreError::NotText {
+            path: path.to_path_buf(),
+            what: "a binary file (it holds NUL bytes)".into(),
+            hint: String::new(),
+        });
+    }
+    Ok(())
 }
 
 /// The general reader alone (any CSV the `csv` crate reads, with messages that name the row,
@@ -796,6 +826,20 @@ mod tests {
         // A header that merely lacks the column gets no guess.
         let e = err("t_s,thr,mag_x_ut,mag_y_ut\n0,0,1,2\n");
         assert!(!e.contains(';'), "{e}");
+    }
+
+    #[test]
+    fn a_flight_log_or_binary_file_is_named_as_such() {
+        let read = |bytes: &[u8]| read_bytes(bytes, Path::new("f")).unwrap_err().to_string();
+        let e = read(b"ULog\x01\x12\x35\x01\x00\x00");
+        assert!(
+            e.contains("a PX4 ULog log") && e.contains("import --ulog f"),
+            "{e}"
+        );
+        let e = read(&[0xA3, 0x95, 0x80, 0x80, 0x59]);
+        assert!(e.contains("DataFlash") && e.contains("--dataflash"), "{e}");
+        let e = read(b"t_s,thr\x00,mag");
+        assert!(e.contains("a binary file"), "{e}");
     }
 
     #[test]
