@@ -354,14 +354,15 @@ fn magnetometer(
             };
             // An internal sensor turns with the board, whose fine trim (degrees, roll pitch
             // yaw) PX4 applies after the board's rotation.
-            let internal = p("ROT", -1.0) as i64 == -1;
+            let rotation = p("ROT", -1.0) as i64;
+            let internal = rotation == -1;
             let trim = ["X", "Y", "Z"].map(|a| {
                 log.param(&format!("SENS_BOARD_{a}_OFF"))
                     .unwrap_or(0.0)
                     .to_radians()
             });
             let board = log.param("SENS_BOARD_ROT").unwrap_or(0.0) as i64;
-            let (code, rot, known) = px4_sensor_rotation(p("ROT", -1.0) as i64, board, trim);
+            let (code, rot, known) = px4_sensor_rotation(rotation, board, trim);
             if !known {
                 out.notes.push(format!(
                     "warning: rotation {code} of CAL_MAG{k} is not one of PX4's (0 to 40); the field stays in the sensor frame"
