@@ -180,9 +180,9 @@ fn separate_calibration(
         let constant = t.effect.stand_constant(ctx);
         let calibration = super::forward::calibrates(t.effect, ctx, &t.theta);
         // A finding is reported beside the laws of its test's form; a calibration beside the
-        // laws without the linear power too (`Laws::Calibration`).
+        // laws without the linear power too (`Laws::AlsoWithoutLinearPower`).
         let laws = if calibration {
-            Laws::Calibration
+            Laws::AlsoWithoutLinearPower
         } else {
             Laws::WithLinearPower
         };
