@@ -5,8 +5,8 @@
 //! its model on "0 held-out rows in 0 time blocks", printed an error of 0.0000 µT for every
 //! family, and exited 0. Blocks are now numbered in the order they hold rows. And nothing said
 //! that times in microseconds, or a field in gauss, are not what the columns' names state:
-//! `fit` and `diagnose` now warn where the rows are more than 2 s apart or the field's
-//! magnitude is beyond a factor 5 of the Earth's.
+//! `fit`, `diagnose` and `compensate` now warn where the rows are more than 2 s apart or the
+//! field's magnitude is beyond a factor 5 of the Earth's.
 mod common;
 
 #[test]
@@ -80,6 +80,21 @@ fn a_field_in_gauss_is_warned_about_and_one_in_microtesla_is_not() {
     let r = fit(&source);
     assert!(r.ok, "{}", r.stderr);
     assert!(!r.stderr.contains("warning"), "{}", r.stderr);
+    // A model in microtesla applied to the field in gauss: the same warning.
+    let r = common::magstand(&[
+        "compensate",
+        "--model",
+        dir.path().join("m.json").to_str().unwrap(),
+        "--recording",
+        in_gauss.to_str().unwrap(),
+        "--out",
+        dir.path().join("c.csv").to_str().unwrap(),
+    ]);
+    assert!(
+        r.ok && r.stderr.contains("1 gauss = 100 µT"),
+        "{}",
+        r.stderr
+    );
 
     let r = common::magstand(&[
         "diagnose",
