@@ -16,6 +16,13 @@ use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 use std::sync::atomic::{AtomicBool, Ordering};
 
+/// The first bytes of a PX4 ULog file: `magstand import --ulog` reads it, and a reader of
+/// another format names it by them.
+pub const ULOG_MAGIC: &[u8] = b"ULog";
+/// The first bytes of an ArduPilot DataFlash log (a message header): `magstand import
+/// --dataflash` reads it, and a reader of another format names it by them.
+pub const DATAFLASH_MAGIC: &[u8] = &[0xA3, 0x95];
+
 /// Whether files opened here are remembered as inputs (see [`protect_inputs`]).
 static PROTECTING: AtomicBool = AtomicBool::new(false);
 /// The canonical paths of the inputs opened so far.

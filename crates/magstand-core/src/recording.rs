@@ -218,17 +218,15 @@ impl Recording {
                  milliseconds or microseconds would look like this"
             ));
         }
-        if self.len() >= 2 {
-            let mut norms: Vec<f64> = self.mag_ut.iter().map(|m| m.norm()).collect();
-            let mid = norms.len() / 2;
-            let median_ut = *norms.select_nth_unstable_by(mid, f64::total_cmp).1;
-            if !(22.0 / 5.0..=67.0 * 5.0).contains(&median_ut) {
-                doubts.push(format!(
-                    "the field's median magnitude is {median_ut:.4} µT, where the Earth's is 22 \
-                     to 67 µT: mag_*_ut is in microtesla (1 gauss = 100 µT, 1 mG = 0.1 µT, \
-                     1 nT = 0.001 µT), unless the stand cancels or adds a field"
-                ));
-            }
+        let mut norms: Vec<f64> = self.mag_ut.iter().map(|m| m.norm()).collect();
+        if let Some(median_ut) = upper_median(&mut norms)
+            .filter(|m| self.len() >= 2 && !(22.0 / 5.0..=67.0 * 5.0).contains(m))
+        {
+            doubts.push(format!(
+                "the field's median magnitude is {median_ut:.4} µT, where the Earth's is 22 to 67 \
+                 µT: mag_*_ut is in microtesla (1 gauss = 100 µT, 1 mG = 0.1 µT, 1 nT = 0.001 \
+                 µT), unless the stand cancels or adds a field"
+            ));
         }
         doubts
     }
@@ -342,11 +340,14 @@ impl Recording {
 /// samples).
 pub fn typical_interval_s(t_s: &[f64]) -> f64 {
     let mut d: Vec<f64> = t_s.windows(2).map(|w| w[1] - w[0]).collect();
-    if d.is_empty() {
-        return 0.0;
-    }
-    let mid = d.len() / 2;
-    *d.select_nth_unstable_by(mid, f64::total_cmp).1
+    upper_median(&mut d).unwrap_or(0.0)
+}
+
+/// The median of `values` (the upper of the two middle ones for an even count), reordering
+/// them; None for none.
+fn upper_median(values: &mut [f64]) -> Option<f64> {
+    let mid = values.len() / 2;
+    (!values.is_empty()).then(|| *values.select_nth_unstable_by(mid, f64::total_cmp).1)
 }
 
 /// An interval longer than this many typical intervals is a gap (as `magstand import` reports

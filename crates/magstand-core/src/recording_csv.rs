@@ -56,8 +56,8 @@ fn read_bytes(bytes: &[u8], path: &Path) -> Result<Recording, CoreError> {
 
 /// A flight log or another binary file where a recording was expected, said as such rather
 /// than as the CSV parser's complaint about UTF-8 at byte 0. A flight log is named by its
-/// magic bytes (the ones `magstand import` checks), anything else by a NUL byte near its
-/// start, which no CSV text holds.
+/// magic bytes ([`crate::input_file::ULOG_MAGIC`], [`crate::input_file::DATAFLASH_MAGIC`]),
+/// anything else by a NUL byte near its start, which no CSV text holds.
 fn refuse_binary(bytes: &[u8], path: &Path) -> Result<(), CoreError> {
     let log = |what: &str, flag: &str| CoreError::NotText {
         path: path.to_path_buf(),
@@ -67,10 +67,10 @@ fn refuse_binary(bytes: &[u8], path: &Path) -> Result<(), CoreError> {
             path.display()
         ),
     };
-    if bytes.starts_with(b"ULog") {
+    if bytes.starts_with(crate::input_file::ULOG_MAGIC) {
         return Err(log("a PX4 ULog log", "--ulog"));
     }
-    if bytes.starts_with(&[0xA3, 0x95]) {
+    if bytes.starts_with(crate::input_file::DATAFLASH_MAGIC) {
         return Err(log("an ArduPilot DataFlash log", "--dataflash"));
     }
     if bytes.iter().take(4096).any(|&b| b == 0) {

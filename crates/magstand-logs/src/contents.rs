@@ -68,9 +68,10 @@ impl LogFormat {
     /// The format of log bytes, recognized by their first bytes (ULog's magic, a DataFlash
     /// message header).
     pub fn detect(bytes: &[u8]) -> Option<Self> {
-        if bytes.starts_with(b"ULog") {
+        use magstand_core::input_file::{DATAFLASH_MAGIC, ULOG_MAGIC};
+        if bytes.starts_with(ULOG_MAGIC) {
             Some(LogFormat::Ulog)
-        } else if bytes.starts_with(&[0xA3, 0x95]) {
+        } else if bytes.starts_with(DATAFLASH_MAGIC) {
             Some(LogFormat::DataFlash)
         } else {
             None
