@@ -78,7 +78,7 @@ fn run_adaptive(a: &CompensateArgs, model: &Model, origin: &str) -> Result<()> {
     .check()
     .map_err(|e| anyhow::anyhow!(crate::fit_cmd::in_flag_terms(&e.to_string())))?;
     let rec = recording_csv::read(&a.recording)?;
-    crate::fit_cmd::warn_unit_doubts(&rec, origin);
+    crate::fit_cmd::warn_doubts(&rec, origin);
     MagnetometerSlot::agreeing_with(model.magnetometer, &rec, &a.recording)?;
     let adapted = compensate_adaptive(model, &rec, origin, &cfg)?;
     files::ensure_parent(&a.out)?;
@@ -157,7 +157,7 @@ pub fn run(a: CompensateArgs) -> Result<()> {
         return run_adaptive(&a, m, &origin);
     }
     let rec = recording_csv::read(&a.recording)?;
-    crate::fit_cmd::warn_unit_doubts(&rec, &origin);
+    crate::fit_cmd::warn_doubts(&rec, &origin);
     let fitted_on = match &model {
         DisturbanceModel::LocalLinear(m) => m.magnetometer,
         DisturbanceModel::Physics(m) => m.magnetometer,

@@ -28,6 +28,66 @@ pub struct ImuColumns {
 /// compensation multiplies ([`Recording::autopilot_throttle`]).
 pub const AUTOPILOT_THROTTLE: &str = "autopilot_throttle";
 
+/// The columns a recording's reader reads, by name or (ending in `_`) by prefix, for
+/// [`Recording::unread_column_doubts`].
+const READ_COLUMNS: [&str; 14] = [
+    "t_s", "thr", "thr_", "mag_", "bat_v", "bat_a", "temp_c", "acc_", "gyr_", "att_qw", "att_qx",
+    "att_qy", "att_qz", "true_",
+];
+
+/// Optional columns, what names a user may have given them, and what they hold.
+type Lookalike = (&'static str, fn(&str) -> bool, &'static str);
+
+/// The optional columns a user may have logged under another name: an extra column whose
+/// name, in lower case without `_`, `-`, `.` and spaces, looks like one of these.
+const LOOKALIKES: [Lookalike; 4] = [
+    (
+        "bat_v",
+        |n| {
+            let n = squeezed(n);
+            n.contains("volt")
+                || ["vbat", "batv", "battv", "batteryv", "batmv"]
+                    .iter()
+                    .any(|p| n.starts_with(p))
+        },
+        "the supply voltage in volts",
+    ),
+    (
+        "bat_a",
+        |n| {
+            let n = squeezed(n);
+            n.contains("current")
+                || ["ibat", "bata", "batta", "batterya", "batma", "amp", "curr"]
+                    .iter()
+                    .any(|p| n.starts_with(p))
+        },
+        "the supply current in amperes",
+    ),
+    (
+        "temp_c",
+        |n| squeezed(n).contains("temp"),
+        "the board temperature in °C",
+    ),
+    (
+        "att_qw",
+        |n| {
+            let n = squeezed(n);
+            n.starts_with("att")
+                || n.starts_with("quat")
+                || ["q0", "q1", "q2", "q3", "qw", "qx", "qy", "qz"].contains(&n.as_str())
+        },
+        "the attitude as the quaternion att_qw, att_qx, att_qy, att_qz",
+    ),
+];
+
+/// `name` in lower case without `_`, `-`, `.` and spaces.
+fn squeezed(name: &str) -> String {
+    name.chars()
+        .filter(|c| !matches!(c, '_' | '-' | '.' | ' '))
+        .flat_map(char::to_lowercase)
+        .collect()
+}
+
 /// One magnetometer sample per row, with what was commanded and measured alongside it.
 ///
 /// Columns are stored column-major. All vectors have [`Recording::len`] entries; use
@@ -203,13 +263,24 @@ impl Recording {
         ))
     }
 
-    /// Doubts about the units of `t_s` and `mag_*_ut`, one sentence each: rows more than 2 s
-    /// apart (median), slower than any motor or field change this tool models, as times in
-    /// milliseconds or microseconds would be; a field whose median magnitude is beyond a
-    /// factor 5 of the Earth's (22 to 67 µT at the surface), as readings in gauss, milligauss
-    /// or nanotesla would be. Warnings, not errors: a stand may cancel the Earth's field, and
-    /// a log may be slow. Empty where neither is seen.
-    pub fn unit_doubts(&self) -> Vec<String> {
+    /// Doubts about what the recording's columns hold, one sentence each, for a tool to warn
+    /// of: the units of `t_s` and `mag_*_ut`, then columns that are not read but look meant
+    /// to be. Rows more than 2 s apart (median), slower than any motor or field change this
+    /// tool models, as times in milliseconds or microseconds would be; a field whose median
+    /// magnitude is beyond a factor 5 of the Earth's (22 to 67 µT at the surface), as
+    /// readings in gauss, milligauss or nanotesla would be; an extra column named like
+    /// `bat_v`, `bat_a`, `temp_c` or the attitude where that column is absent
+    /// ([`Recording::unread_column_doubts`]). Warnings, not errors: a stand may cancel the
+    /// Earth's field, a log may be slow, and a column may hold something else. Empty where
+    /// none is seen.
+    pub fn doubts(&self) -> Vec<String> {
+        let mut doubts = self.unit_doubts();
+        doubts.extend(self.unread_column_doubts());
+        doubts
+    }
+
+    /// The doubts of [`Recording::doubts`] about the units of `t_s` and `mag_*_ut`.
+    fn unit_doubts(&self) -> Vec<String> {
         let mut doubts = Vec::new();
         let interval_s = self.typical_interval_s();
         if interval_s > 2.0 {
@@ -229,6 +300,48 @@ impl Recording {
             ));
         }
         doubts
+    }
+
+    /// The doubts of [`Recording::doubts`] about extra columns: one whose name is a column's
+    /// this tool reads in other letter case, or, where `bat_v`, `bat_a`, `temp_c` or the
+    /// attitude is absent, one named as a supply voltage, current, temperature or quaternion
+    /// would be (`vbat`, `Voltage`, `current_a`, `temp`, `q0`). Such a column is kept as
+    /// extra and not used: a diagnosis without `bat_v` calibrates the battery's sag, and
+    /// one without `temp_c` takes heating from the power, which a user who logged them
+    /// would not expect.
+    pub fn unread_column_doubts(&self) -> Vec<String> {
+        let mut doubts = Vec::new();
+        for (name, _) in &self.extra {
+            if let Some(read) = READ_COLUMNS
+                .iter()
+                .find(|r| !r.ends_with('_') && r.eq_ignore_ascii_case(name))
+            {
+                doubts.push(format!(
+                    "column `{name}` is not read: column names are lower case, as `{read}`"
+                ));
+                continue;
+            }
+            let meant = LOOKALIKES
+                .iter()
+                .find(|(_, looks_like, _)| looks_like(name));
+            if let Some((column, _, what)) = meant.filter(|(c, _, _)| !self.has_column(c)) {
+                doubts.push(format!(
+                    "column `{name}` is not read: magstand reads {what} as `{column}`; rename it \
+                     if that is what it holds"
+                ));
+            }
+        }
+        doubts
+    }
+
+    /// Whether the optional column `name` (`bat_v`, `bat_a`, `temp_c`, `att_qw`) is read.
+    fn has_column(&self, name: &str) -> bool {
+        match name {
+            "bat_v" => self.bat_v.is_some(),
+            "bat_a" => self.bat_a.is_some(),
+            "temp_c" => self.temp_c.is_some(),
+            _ => self.attitude.is_some(),
+        }
     }
 
     /// Typical sample interval in seconds: the median of the intervals between rows (0 for

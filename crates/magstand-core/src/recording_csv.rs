@@ -751,6 +751,52 @@ mod tests {
         );
     }
 
+    /// A column a user meant to be read but named otherwise is carried through as extra and
+    /// not used: the recording says so where the column it looks like is absent, and says
+    /// nothing of the extra columns `import` writes or of a lookalike beside the real one.
+    #[test]
+    fn unread_columns_that_look_meant_are_doubted() {
+        let doubts = |header: &str, cells: &str| {
+            let text =
+                format!("t_s,thr_1,mag_x_ut,mag_y_ut,mag_z_ut,{header}\n0,0,20,0,40,{cells}\n");
+            read_str(&text, "r.csv").unwrap().doubts()
+        };
+        let d = doubts("Bat_V,vbat,Temp,current_a,q0", "12,12,25,3,1");
+        assert_eq!(d.len(), 5, "{d:#?}");
+        assert!(
+            d[0].contains("`Bat_V` is not read") && d[0].contains("`bat_v`"),
+            "{d:#?}"
+        );
+        for (i, (name, read)) in [
+            ("vbat", "bat_v"),
+            ("Temp", "temp_c"),
+            ("current_a", "bat_a"),
+            ("q0", "att_qw"),
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            let doubt = &d[i + 1];
+            assert!(
+                doubt.contains(&format!("`{name}` is not read"))
+                    && doubt.contains(&format!("as `{read}`")),
+                "doubt {i} of {d:#?}"
+            );
+        }
+        // The read column is there: its lookalike is something else, said nothing of.
+        assert_eq!(
+            doubts("bat_v,vbat_raw,temp_c,temp_motor_c", "12,12,25,40"),
+            Vec::<String>::new()
+        );
+        // `import`'s extra columns, and a time stamp (which holds `amp`).
+        let import =
+            "autopilot_throttle,armed,landed,segment,mag_slot,mag_to_body,esc_1_a,timestamp";
+        assert_eq!(
+            doubts(import, "0.1,1,0,flight,px4:0,1 0 0 0 1 0 0 0 1,3,5"),
+            Vec::<String>::new()
+        );
+    }
+
     /// A logger's wall-clock stamps (Unix time) are past the time column's limit: the error
     /// names the file, the row and the column, and says what the column holds and how to get
     /// there.

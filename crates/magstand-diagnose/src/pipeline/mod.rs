@@ -77,7 +77,7 @@ pub(crate) fn diagnose_with(
     let cfg = config.params();
     observer.stage(Stage::Baseline);
     // Of the recording as given: a flight's baseline takes the Earth's field out.
-    let unit_doubts = rec.unit_doubts();
+    let doubts = rec.doubts();
     let flight = flight::flight_baseline(rec, origin)?;
     let rec = flight.as_ref().map_or(rec, |f| &f.recording);
     // A motor count nobody stated is the recording's own.
@@ -134,11 +134,9 @@ pub(crate) fn diagnose_with(
         // The flight's doubts first: they qualify everything after them.
         d.warnings.splice(0..0, f.warnings);
     }
-    // And the units' before those.
-    d.warnings.splice(
-        0..0,
-        unit_doubts.into_iter().map(|w| format!("{origin}: {w}")),
-    );
+    // And the recording's own (its units, its unread columns) before those.
+    d.warnings
+        .splice(0..0, doubts.into_iter().map(|w| format!("{origin}: {w}")));
     Ok(d)
 }
 
