@@ -289,8 +289,8 @@ fn px4_frame_unknown(a: &ExportArgs, slot: MagnetometerSlot) -> anyhow::Error {
 
 /// Refuses `--to ardupilot-per-motor` for a model of a compass whose firmware has no per-motor
 /// compensation: its log has a soft-iron matrix as the frame of its compensation
-/// (`magnetometer_to_body` of an ArduPilot compass), which only firmware without
-/// `COMPASS_PMOT_EN` adds it before.
+/// (`magnetometer_to_body` of an ArduPilot compass), which only firmware from before
+/// per-motor compensation adds it before.
 fn refuse_per_motor_without_it(
     a: &ExportArgs,
     fitted_on: Option<MagnetometerSlot>,
@@ -301,7 +301,7 @@ fn refuse_per_motor_without_it(
         && frame.is_some()
     {
         bail!(
-            "{} was fitted on a log whose ArduPilot has no per-motor compensation (no COMPASS_PMOT_EN parameter): COMPASS_PMOT* would do nothing on that vehicle. Export --to ardupilot",
+            "{} was fitted on a log whose ArduPilot predates per-motor compensation (COMPASS_PMOT_EN): COMPASS_PMOT* would do nothing on that vehicle. Export --to ardupilot",
             a.model.display()
         );
     }

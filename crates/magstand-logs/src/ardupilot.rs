@@ -345,13 +345,13 @@ fn applied_motor_compensation<'a>(
 }
 
 /// The matrix ArduPilot takes a compass's field through after adding its motor compensation,
-/// where its firmware does so: firmware without per-motor compensation (the log has no
-/// `COMPASS_PMOT_EN` parameter) adds the compensation to the field with
-/// its offsets, then applies the soft-iron matrix (`COMPASS_DIA*` on the diagonal,
-/// `COMPASS_ODI*` off it, of the compass of `slot`); later firmware adds it after the matrix,
-/// to the field the log records, and needs none. A compensation for the older firmware is then
-/// `−matrix⁻¹ · slope` (`export` writes it so), and the compensation it applied entered the
-/// logged field through the matrix.
+/// where its firmware does so: firmware before per-motor compensation adds the compensation
+/// to the field with its offsets, then applies the soft-iron matrix (`COMPASS_DIA*` on the
+/// diagonal, `COMPASS_ODI*` off it, of the compass of `slot`); later firmware adds it after
+/// the matrix, to the field the log records, and needs none. A compensation for the older
+/// firmware is then `−matrix⁻¹ · slope` (`export` writes it so), and the compensation it
+/// applied entered the logged field through the matrix. Which firmware wrote the log:
+/// [`adds_compensation_after_the_matrix`].
 fn compensation_frame(
     log: &LogContents,
     slot: Option<MagnetometerSlot>,
@@ -360,7 +360,13 @@ fn compensation_frame(
     let MagnetometerSlot::ArduPilotCompass(n) = slot? else {
         return None;
     };
-    if log.param("COMPASS_PMOT_EN").is_some() {
+    if adds_compensation_after_the_matrix(log) {
+        if log.param("COMPASS_PMOT_EN").is_none() {
+            notes.push(format!(
+                "this firmware ({}) has no COMPASS_PMOT_EN: it leaves per-motor compensation out (a board of 1 MB of flash or less), so `export --to ardupilot-per-motor` would write parameters it does not have; it adds COMPASS_MOT* after the soft-iron matrix, as `export --to ardupilot` writes them",
+                log.firmware().unwrap_or_default()
+            ));
+        }
         return None;
     }
     let suffix = compass_suffix(n.into());
@@ -378,7 +384,11 @@ fn compensation_frame(
         Ok(frame) if frame.is_identity() => None,
         Ok(frame) => {
             notes.push(format!(
-                "this firmware (no COMPASS_PMOT_EN) adds its motor compensation before compass {n}'s soft-iron matrix ({frame}, row by row; column `{}`): `export --to ardupilot` writes COMPASS_MOT* through it",
+                "this firmware ({}) adds its motor compensation before compass {n}'s soft-iron matrix ({frame}, row by row; column `{}`): `export --to ardupilot` writes COMPASS_MOT* through it",
+                log.firmware().map_or_else(
+                    || "no COMPASS_PMOT_EN, and no firmware version in the log".to_string(),
+                    |f| format!("{f}, before per-motor compensation")
+                ),
                 magstand_core::magnetometer_frame::COLUMN
             ));
             Some(frame)
@@ -390,6 +400,19 @@ fn compensation_frame(
             None
         }
     }
+}
+
+/// Whether the firmware that wrote `log` adds its motor compensation after the soft-iron
+/// matrix. Per-motor compensation came with that order (ArduPilot pull request 6448, 2017,
+/// first released in Copter 3.6): a log with `COMPASS_PMOT_EN` has it. The parameter alone
+/// does not tell the older firmware, though: later releases leave per-motor compensation out
+/// of boards of 1 MB of flash or less (`AP_COMPASS_PMOT_ENABLED`), so the release the log
+/// names decides first: 4.0 or later for any vehicle, Copter 3.6 or later.
+fn adds_compensation_after_the_matrix(log: &LogContents) -> bool {
+    let released_after = log
+        .ardupilot_version()
+        .map(|(vehicle, v)| v[0] >= 4 || (vehicle == "Copter" && v >= [3, 6, 0]));
+    log.param("COMPASS_PMOT_EN").is_some() || released_after == Some(true)
 }
 
 /// What ArduPilot appends to a per-compass parameter's name for compass `n` (1 to 3): nothing
@@ -881,7 +904,10 @@ mod tests {
     /// compensation before the compass's soft-iron matrix: the compensation it applied entered
     /// the logged field through that matrix and is taken out through it, and the matrix is the
     /// frame `export` writes `COMPASS_MOT*` in. Later firmware adds it after the matrix: the
-    /// logged offsets come out as they are, and there is no frame.
+    /// logged offsets come out as they are, and there is no frame. A later release named in
+    /// the log is later firmware with or without the parameter (regression: such a log from
+    /// a board of 1 MB of flash, which leaves per-motor compensation out, was taken for the
+    /// older firmware, and its exported `COMPASS_MOT*` went through the soft-iron matrix).
     #[test]
     fn older_firmware_adds_its_compensation_before_the_soft_iron_matrix() {
         let with = [
@@ -926,6 +952,53 @@ mod tests {
         let want = Vec3::new(30.0, 0.0, -5.0) - Vec3::new(12.0, -4.0, 1.0);
         let got = out.mag_ut.values[1];
         assert!((got - want).norm() < 1e-9, "{got:?} against {want:?}");
+        // A later release without the parameter (per-motor compensation left out of a board
+        // of 1 MB of flash): the release decides; an older one named keeps the frame.
+        for (firmware, older) in [
+            ("ArduCopter V4.5.7 (2a3dc4b7)", false),
+            ("ArduPlane V4.0.0", false),
+            ("ArduCopter V3.6.12 (e4e5b8a5)", false),
+            ("APM:Copter V3.5.7 (b11c6af3)", true),
+            ("APM:Copter V3.3-dev", true),
+        ] {
+            let mut log = one_compass(&with, &matrix);
+            log.texts.push((0.5, firmware.to_string()));
+            let mut out = VehicleStreams::default();
+            magnetometer(&log, &ImportOptions::default(), &mut out).expect("imported");
+            assert_eq!(
+                out.mag_to_body.is_some(),
+                older,
+                "{firmware}: {:?}",
+                out.notes
+            );
+            let applied = if older {
+                added
+            } else {
+                Vec3::new(12.0, -4.0, 1.0)
+            };
+            let got = out.mag_ut.values[1];
+            let want = Vec3::new(30.0, 0.0, -5.0) - applied;
+            assert!(
+                (got - want).norm() < 1e-9,
+                "{firmware}: {got:?} against {want:?}"
+            );
+            assert_eq!(
+                out.notes
+                    .iter()
+                    .any(|n| n.contains(firmware) && n.contains("before compass")),
+                older,
+                "{firmware}: {:?}",
+                out.notes
+            );
+            assert_eq!(
+                out.notes
+                    .iter()
+                    .any(|n| n.contains(firmware) && n.contains("per-motor compensation out")),
+                !older,
+                "{firmware}: {:?}",
+                out.notes
+            );
+        }
         // A diagonal never calibrated (zeros) is the firmware's identity: no frame.
         let log = one_compass(&with, &[("COMPASS_DIA_X", 0.0), ("COMPASS_MOTCT", 1.0)]);
         let mut out = VehicleStreams::default();

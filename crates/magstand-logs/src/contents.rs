@@ -203,10 +203,41 @@ impl LogContents {
         (v != 0).then_some([major, minor, patch])
     }
 
+    /// The ArduPilot vehicle and release that wrote a DataFlash log, from its
+    /// [`firmware`](LogContents::firmware) message: ("Copter", [4, 6, 2]) for "ArduCopter
+    /// V4.6.2 (1ebd4d99)", ("Copter", [3, 3, 0]) for "APM:Copter V3.3-dev". None for a ULog
+    /// or where the log does not say.
+    pub fn ardupilot_version(&self) -> Option<(String, [u8; 3])> {
+        if self.format != LogFormat::DataFlash {
+            return None;
+        }
+        ardupilot_release(&self.firmware()?)
+    }
+
     /// A parameter's value.
     pub fn param(&self, name: &str) -> Option<f64> {
         self.params.get(name).copied()
     }
+}
+
+/// The vehicle and release of an ArduPilot firmware message ("ArduCopter V4.6.2 (1ebd4d99)",
+/// "APM:Copter V3.3-dev", "ArduPlane V4.1.0beta2"): missing minor or patch numbers are 0.
+fn ardupilot_release(message: &str) -> Option<(String, [u8; 3])> {
+    let mut words = message.split_whitespace();
+    let name = words.next()?;
+    let vehicle = name
+        .strip_prefix("Ardu")
+        .or_else(|| name.strip_prefix("APM:"))
+        .filter(|v| !v.is_empty())?;
+    let version = words.next()?.strip_prefix(['V', 'v'])?;
+    let mut numbers = version.split('.').map(|part| {
+        part.split(|c: char| !c.is_ascii_digit())
+            .next()
+            .unwrap_or("")
+    });
+    let major = numbers.next()?.parse().ok()?;
+    let mut next = || numbers.next().and_then(|n| n.parse().ok()).unwrap_or(0);
+    Some((vehicle.to_string(), [major, next(), next()]))
 }
 
 /// PX4's `ver_sw_release` (0xAABBCCTT: major, minor, patch, type) as "v1.14.0", with the
@@ -234,6 +265,32 @@ mod tests {
         assert_eq!(px4_release(0x010E_00FF), "v1.14.0");
         assert_eq!(px4_release(0x0111_00C0), "v1.17.0-rc");
         assert_eq!(px4_release(0x0109_0000), "v1.9.0-dev");
+    }
+
+    #[test]
+    fn ardupilot_releases_read_as_the_firmware_prints_them() {
+        let read = ardupilot_release;
+        // The two real logs of tests/data/real-logs, then other spellings.
+        assert_eq!(
+            read("ArduCopter V4.6.2 (1ebd4d99)"),
+            Some(("Copter".into(), [4, 6, 2]))
+        );
+        assert_eq!(
+            read("APM:Copter V3.3-dev"),
+            Some(("Copter".into(), [3, 3, 0]))
+        );
+        assert_eq!(
+            read("APM:Copter V3.5.7 (b11c6af3)"),
+            Some(("Copter".into(), [3, 5, 7]))
+        );
+        assert_eq!(
+            read("ArduPlane V4.1.0beta2"),
+            Some(("Plane".into(), [4, 1, 0]))
+        );
+        assert_eq!(read("ArduRover v2.51"), Some(("Rover".into(), [2, 51, 0])));
+        assert_eq!(read("Frame: QUAD"), None);
+        assert_eq!(read("ArduCopter"), None);
+        assert_eq!(read("ArduCopter Vx"), None);
     }
 
     #[test]
