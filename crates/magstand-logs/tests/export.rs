@@ -114,6 +114,12 @@ fn a_convex_model_loses_heading_accuracy_in_the_linear_form() {
         line.worst_heading_deg > 0.5 && line.worst_heading_deg < line.uncompensated_heading_deg,
         "{line:?}"
     );
+    assert!(
+        line.p95_heading_deg <= line.worst_heading_deg
+            && line.p95_heading_deg < line.uncompensated_p95_heading_deg
+            && line.uncompensated_p95_heading_deg <= line.uncompensated_heading_deg,
+        "{line:?}"
+    );
 }
 
 /// Raw inputs the firmware tests evaluate at: below, across and above the model's range.

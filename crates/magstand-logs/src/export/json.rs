@@ -24,12 +24,13 @@
 //!             "sd_ut": [[...], [...], [...]] | null},
 //!   "linear": {"input": "throttle"|"current", "range_max": r, "slope_ut": [x, y, z],
 //!              "rms_left_ut": [x, y, z], "worst_heading_deg": h, "uncompensated_heading_deg": h0,
+//!              "p95_heading_deg": p, "uncompensated_p95_heading_deg": p0, // 95th percentiles
 //!              "ardupilot_interference_pct": p,
 //!              "px4": {"CAL_MAG_COMP_TYP": 1|2, "XCOMP": .., "YCOMP": .., "ZCOMP": ..},
 //!              "ardupilot": {"COMPASS_MOTCT": 1|2, "COMPASS_MOT_X": .., "COMPASS_MOT_Y": ..,
 //!                            "COMPASS_MOT_Z": ..}},
 //!   "per_motor": {"COMPASS_PMOT_EXP": e, "compensation_mg": [[x, y, z], ...],
-//!                 "rms_left_ut": [x, y, z], "worst_heading_deg": h} | null
+//!                 "rms_left_ut": [x, y, z], "worst_heading_deg": h, "p95_heading_deg": p} | null
 //! }
 //! ```
 use serde::Serialize;
@@ -84,6 +85,8 @@ struct Linear {
     rms_left_ut: [f64; 3],
     worst_heading_deg: f64,
     uncompensated_heading_deg: f64,
+    p95_heading_deg: f64,
+    uncompensated_p95_heading_deg: f64,
     ardupilot_interference_pct: f64,
     px4: BTreeMap<&'static str, f64>,
     ardupilot: BTreeMap<&'static str, f64>,
@@ -96,6 +99,7 @@ struct PerMotor {
     compensation_mg: Vec<[f64; 3]>,
     rms_left_ut: [f64; 3],
     worst_heading_deg: f64,
+    p95_heading_deg: f64,
 }
 
 /// The document for a model, its line and (when fitted) ArduPilot's per-motor form.
@@ -159,6 +163,8 @@ pub fn export_json(
             rms_left_ut: line.rms_left_ut,
             worst_heading_deg: line.worst_heading_deg,
             uncompensated_heading_deg: line.uncompensated_heading_deg,
+            p95_heading_deg: line.p95_heading_deg,
+            uncompensated_p95_heading_deg: line.uncompensated_p95_heading_deg,
             ardupilot_interference_pct: line.ardupilot_interference_pct(),
             px4: BTreeMap::from([
                 ("CAL_MAG_COMP_TYP", px4.kind as f64),
@@ -178,6 +184,7 @@ pub fn export_json(
             compensation_mg: p.compensation_mg.clone(),
             rms_left_ut: p.rms_left_ut,
             worst_heading_deg: p.worst_heading_deg,
+            p95_heading_deg: p.p95_heading_deg,
         }),
     };
     serde_json::to_string_pretty(&doc)

@@ -7,7 +7,7 @@
 //! spaced points from zero to the largest recorded input) or, given a recording, over its rows
 //! (so the line is weighted the way the vehicle was actually flown, and a throttle model can be
 //! exported per ampere and a current model per unit throttle). [`LinearFit`] says what the line
-//! leaves: the RMS of the model minus the line, and the worst apparent heading error it causes
+//! leaves: the RMS of the model minus the line, and the worst (and 95th percentile) apparent heading error it causes
 //! on the model's own motors-off field.
 //!
 //! Units: PX4 `CAL_MAGn_{X,Y,Z}COMP` in gauss per unit throttle (`CAL_MAG_COMP_TYP` 1) or
@@ -101,6 +101,10 @@ pub struct LinearFit {
     pub worst_heading_deg: f64,
     /// The same with no compensation at all, for comparison.
     pub uncompensated_heading_deg: f64,
+    /// The 95th percentile of the apparent heading error the line leaves, degrees.
+    pub p95_heading_deg: f64,
+    /// The same with no compensation at all.
+    pub uncompensated_p95_heading_deg: f64,
 }
 
 impl LinearFit {
@@ -141,13 +145,36 @@ pub(crate) struct Samples {
     pub dist: Vec<Vec3>,
 }
 
-/// Worst apparent heading error over samples on the model's motors-off field, for a correction
-/// that leaves `left(k)` of the disturbance at sample k.
-pub(crate) fn worst_heading_deg(reference: Vec3, n: usize, left: impl Fn(usize) -> Vec3) -> f64 {
+/// The apparent heading error over samples on the model's motors-off field, for a correction
+/// that leaves `left(k)` of the disturbance at sample k, degrees: the worst, and the 95th
+/// percentile (nearest rank). Over a recording's rows the worst is often a transient no line
+/// can follow (the motors spinning down after the commands fell to zero, where a line in the
+/// command corrects nothing), so it can read the same with a line and without one; the
+/// percentile says what most of the rows keep.
+pub(crate) fn heading_errors_deg(
+    reference: Vec3,
+    n: usize,
+    left: impl Fn(usize) -> Vec3,
+) -> HeadingErrors {
     let h0 = heading_deg(reference, None);
-    (0..n)
+    let mut errors: Vec<f64> = (0..n)
         .map(|k| heading_difference_deg(heading_deg(reference + left(k), None), h0).abs())
-        .fold(0.0, f64::max)
+        .collect();
+    errors.sort_by(f64::total_cmp);
+    let rank = (0.95 * n as f64).ceil() as usize;
+    HeadingErrors {
+        worst_deg: errors.last().copied().unwrap_or(0.0),
+        p95_deg: errors.get(rank.saturating_sub(1)).copied().unwrap_or(0.0),
+    }
+}
+
+/// The apparent heading errors a correction leaves over samples ([`heading_errors_deg`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct HeadingErrors {
+    /// The worst, degrees.
+    pub worst_deg: f64,
+    /// The 95th percentile, degrees.
+    pub p95_deg: f64,
 }
 
 /// The model at [`GRID`] evenly spaced raw inputs from zero to the top of its recorded range;
@@ -308,13 +335,17 @@ fn line_through(
             / n as f64)
             .sqrt()
     });
+    let with_line = heading_errors_deg(reference, n, |k| dist[k] - line * x[k]);
+    let without = heading_errors_deg(reference, n, |k| dist[k]);
     Ok(LinearFit {
         input,
         range_max,
         slope,
         rms_left_ut,
-        worst_heading_deg: worst_heading_deg(reference, n, |k| dist[k] - line * x[k]),
-        uncompensated_heading_deg: worst_heading_deg(reference, n, |k| dist[k]),
+        worst_heading_deg: with_line.worst_deg,
+        uncompensated_heading_deg: without.worst_deg,
+        p95_heading_deg: with_line.p95_deg,
+        uncompensated_p95_heading_deg: without.p95_deg,
     })
 }
 
@@ -538,11 +569,34 @@ pub fn describe(line: &LinearFit) -> String {
         );
     }
     out += &format!(
-        "worst apparent heading error: {:.2} deg uncompensated, {:.2} deg with the line, 0 with the full model\n\
+        "apparent heading error, worst / 95th percentile: {:.2} / {:.2} deg uncompensated, {:.2} / {:.2} deg with the line, 0 with the full model\n\
          ArduPilot compassmot interference at the top of the range: {:.0} % of 530 mG (ArduPilot: <30 % fine, 30-60 % grey zone, >60 % unacceptable)\n",
         line.uncompensated_heading_deg,
+        line.uncompensated_p95_heading_deg,
         line.worst_heading_deg,
+        line.p95_heading_deg,
         line.ardupilot_interference_pct()
     );
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A disturbance across a northward field of 20 µT that turns its heading by 1, 2, .. 80
+    /// degrees at samples 0 .. 79: the worst is 80 degrees and the 95th percentile (nearest
+    /// rank, the 76th of 80) 76.
+    #[test]
+    fn heading_errors_are_the_worst_and_the_95th_percentile() {
+        let reference = Vec3::new(20.0, 0.0, 40.0);
+        let across = |k: usize| Vec3::new(0.0, 20.0 * ((k + 1) as f64).to_radians().tan(), 0.0);
+        let e = heading_errors_deg(reference, 80, across);
+        assert!((e.worst_deg - 80.0).abs() < 1e-9, "{e:?}");
+        assert!((e.p95_deg - 76.0).abs() < 1e-9, "{e:?}");
+        // In reverse order, the same figures; none for no samples.
+        assert_eq!(heading_errors_deg(reference, 80, |k| across(79 - k)), e);
+        let none = heading_errors_deg(reference, 0, across);
+        assert_eq!((none.worst_deg, none.p95_deg), (0.0, 0.0));
+    }
 }

@@ -13,7 +13,7 @@ use magstand_ident::InputKind;
 use magstand_ident::Model;
 use magstand_ident::least_squares::{NormalEquations, SolveError};
 
-use super::worst_heading_deg;
+use super::heading_errors_deg;
 use crate::LogsError;
 
 /// Motors ArduPilot's per-motor compensation covers.
@@ -36,6 +36,10 @@ pub struct PerMotorFit {
     pub worst_heading_deg: f64,
     /// The same with no compensation at all.
     pub uncompensated_heading_deg: f64,
+    /// The 95th percentile of the apparent heading error the per-motor form leaves, degrees.
+    pub p95_heading_deg: f64,
+    /// The same with no compensation at all.
+    pub uncompensated_p95_heading_deg: f64,
 }
 
 /// The per-motor form fitted at one exponent.
@@ -156,6 +160,8 @@ pub fn per_motor_over_prediction(
     );
     let AtExponent { theta, left } = solve_at(thr, volts, dist, expo).map_err(refuse)?;
     let n = rec.len().max(1) as f64;
+    let with_form = heading_errors_deg(reference_ut, left.len(), |k| left[k]);
+    let without = heading_errors_deg(reference_ut, dist.len(), |k| dist[k]);
     Ok(PerMotorFit {
         expo,
         compensation_mg: (0..motors)
@@ -164,8 +170,10 @@ pub fn per_motor_over_prediction(
         rms_left_ut: std::array::from_fn(|a| {
             (left.iter().map(|l| l[a] * l[a]).sum::<f64>() / n).sqrt()
         }),
-        worst_heading_deg: worst_heading_deg(reference_ut, left.len(), |k| left[k]),
-        uncompensated_heading_deg: worst_heading_deg(reference_ut, dist.len(), |k| dist[k]),
+        worst_heading_deg: with_form.worst_deg,
+        uncompensated_heading_deg: without.worst_deg,
+        p95_heading_deg: with_form.p95_deg,
+        uncompensated_p95_heading_deg: without.p95_deg,
     })
 }
 
@@ -201,12 +209,14 @@ pub fn describe_per_motor(fit: &PerMotorFit) -> String {
     bound
         + &format!(
             "ArduPilot per-motor form (exponent {:.3}) leaves {:.3} / {:.3} / {:.3} uT RMS of the full model (x / y / z)\n\
-         worst apparent heading error: {:.2} deg uncompensated, {:.2} deg with the per-motor form, 0 with the full model\n",
+         apparent heading error, worst / 95th percentile: {:.2} / {:.2} deg uncompensated, {:.2} / {:.2} deg with the per-motor form, 0 with the full model\n",
             fit.expo,
             fit.rms_left_ut[0],
             fit.rms_left_ut[1],
             fit.rms_left_ut[2],
             fit.uncompensated_heading_deg,
-            fit.worst_heading_deg
+            fit.uncompensated_p95_heading_deg,
+            fit.worst_heading_deg,
+            fit.p95_heading_deg
         )
 }
