@@ -5,7 +5,10 @@
 //!    the weighted fit of such a design with a noise law from its own residuals.
 //! 2. [`gain`]: the statistics of a held-out gain (held-out RMSE, per-block improvements, the
 //!    combined one-sided test of a candidate's gain) and the white-noise test.
-//! 3. [`forward`]: the forward search over the catalog, one accepted term per round.
+//! 3. [`forward`]: the forward search over the catalog, one accepted term per round; its
+//!    candidates' fits (`forward::candidate`), the rules for stated and unstated stand
+//!    constants (`forward::stated`), the replication of a name (`forward::replication`) and a
+//!    parameter at the edge of its range (`forward::edges`) are modules of their own.
 //! 4. [`refine`]: after each acceptance, the accepted terms' nonlinear parameters and the
 //!    command timing refitted together.
 //! 5. [`assembly`]: the final joint model, the augmented scenario and its simulation, what
