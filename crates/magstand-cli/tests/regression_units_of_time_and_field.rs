@@ -14,13 +14,7 @@ fn a_clock_in_microseconds_still_holds_rows_out_and_is_warned_about() {
     let dir = tempfile::tempdir().unwrap();
     let model = dir.path().join("m.json");
     let recording = common::test_data("bad-inputs", "time-in-microseconds.csv");
-    let r = common::magstand(&[
-        "fit",
-        "--recording",
-        &recording,
-        "--model-out",
-        model.to_str().unwrap(),
-    ]);
+    let r = common::fit(&recording, model.to_str().unwrap());
     assert!(r.ok, "{}", r.stderr);
     // 1,050 rows, one a block: every fifth held out.
     assert!(
@@ -61,15 +55,7 @@ fn a_field_in_gauss_is_warned_about_and_one_in_microtesla_is_not() {
     }
     let in_gauss = dir.path().join("gauss.csv");
     std::fs::write(&in_gauss, gauss).unwrap();
-    let fit = |recording: &str| {
-        common::magstand(&[
-            "fit",
-            "--recording",
-            recording,
-            "--model-out",
-            dir.path().join("m.json").to_str().unwrap(),
-        ])
-    };
+    let fit = |recording: &str| common::fit(recording, dir.path().join("m.json").to_str().unwrap());
     let r = fit(in_gauss.to_str().unwrap());
     assert!(r.ok, "{}", r.stderr);
     assert!(

@@ -24,13 +24,7 @@ fn a_voltage_and_temperature_under_other_names_are_warned_about() {
     let dir = tempfile::tempdir().unwrap();
     let recording = stair_with(dir.path(), "vbat,Temp_C", "16.2,25.0");
     let model = dir.path().join("m.json");
-    let r = common::magstand(&[
-        "fit",
-        "--recording",
-        &recording,
-        "--model-out",
-        model.to_str().unwrap(),
-    ]);
+    let r = common::fit(&recording, model.to_str().unwrap());
     assert!(r.ok, "{}", r.stderr);
     for expected in [
         "column `vbat` is not read: magstand reads the supply voltage in volts as `bat_v`",
@@ -80,12 +74,6 @@ fn a_voltage_and_temperature_under_other_names_are_warned_about() {
 fn a_read_column_beside_its_lookalike_is_not_warned_about() {
     let dir = tempfile::tempdir().unwrap();
     let recording = stair_with(dir.path(), "bat_v,vbat_raw", "16.2,16.3");
-    let r = common::magstand(&[
-        "fit",
-        "--recording",
-        &recording,
-        "--model-out",
-        dir.path().join("m.json").to_str().unwrap(),
-    ]);
+    let r = common::fit(&recording, dir.path().join("m.json").to_str().unwrap());
     assert!(r.ok && !r.stderr.contains("is not read"), "{}", r.stderr);
 }

@@ -87,6 +87,12 @@ pub fn flight_spread(stdout: &str) -> Vec<f64> {
         .unwrap_or_default()
 }
 
+/// `magstand fit --recording R --model-out M` with no other option, as a user's first fit.
+#[allow(dead_code)] // not every test file fits
+pub fn fit(recording: &str, model_out: &str) -> Run {
+    magstand(&["fit", "--recording", recording, "--model-out", model_out])
+}
+
 /// Fits a flight recording's model with its Earth field fitted out (`fit --recording R
 /// --earth fit --model-out M`), failing the test if it does not succeed.
 #[allow(dead_code)] // not every test file fits a flight
