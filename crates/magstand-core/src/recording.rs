@@ -312,12 +312,19 @@ impl Recording {
     pub fn unread_column_doubts(&self) -> Vec<String> {
         let mut doubts = Vec::new();
         for (name, _) in &self.extra {
-            if let Some(read) = READ_COLUMNS
-                .iter()
-                .find(|r| !r.ends_with('_') && r.eq_ignore_ascii_case(name))
-            {
+            let lower = name.to_ascii_lowercase();
+            let read_in_other_case = lower != *name
+                && READ_COLUMNS.iter().any(|r| {
+                    // A name ending in `_` is a prefix of columns read.
+                    if r.ends_with('_') {
+                        lower.starts_with(r)
+                    } else {
+                        lower == *r
+                    }
+                });
+            if read_in_other_case {
                 doubts.push(format!(
-                    "column `{name}` is not read: column names are lower case, as `{read}`"
+                    "column `{name}` is not read: column names are lower case, as `{lower}`"
                 ));
                 continue;
             }

@@ -761,8 +761,12 @@ mod tests {
                 format!("t_s,thr_1,mag_x_ut,mag_y_ut,mag_z_ut,{header}\n0,0,20,0,40,{cells}\n");
             read_str(&text, "r.csv").unwrap().doubts()
         };
-        let d = doubts("Bat_V,vbat,Temp,current_a,q0", "12,12,25,3,1");
-        assert_eq!(d.len(), 5, "{d:#?}");
+        let d = doubts("Bat_V,vbat,Temp,current_a,q0,ACC_X_MPS2", "12,12,25,3,1,0");
+        assert_eq!(d.len(), 6, "{d:#?}");
+        assert!(
+            d[5].contains("`ACC_X_MPS2` is not read") && d[5].contains("`acc_x_mps2`"),
+            "{d:#?}"
+        );
         assert!(
             d[0].contains("`Bat_V` is not read") && d[0].contains("`bat_v`"),
             "{d:#?}"
