@@ -202,6 +202,14 @@ fn parse_cell(path: &Path, row: usize, column: &str, cell: &str) -> Result<f64, 
                 "a finite number of magnitude at most {limit:e}: seconds from the recording's \
                  start or the logger's boot (for Unix time stamps, subtract the first row's)"
             ),
+            // An optional column measured on some rows only (a battery monitor slower than
+            // the magnetometer): say how to make it whole.
+            "bat_v" | "bat_a" | "temp_c" if cell.trim().is_empty() => format!(
+                "a finite number of magnitude at most {limit:e} on every row: an optional \
+                 column holds a value wherever it is given; where `{column}` was not measured \
+                 on some rows, fill them (e.g. from the rows beside them, as `magstand import` \
+                 does) or leave the column out"
+            ),
             _ => format!("a finite number of magnitude at most {limit:e}"),
         },
     };
@@ -748,6 +756,19 @@ mod tests {
         assert_eq!(
             r.extra,
             vec![("note".to_string(), vec!["a".to_string(), "b".to_string()])]
+        );
+    }
+
+    /// An optional column left empty on rows where it was not measured is refused by name,
+    /// with how to make it whole.
+    #[test]
+    fn an_empty_optional_cell_says_how_to_fill_it() {
+        let e = err("t_s,thr,mag_x_ut,mag_y_ut,mag_z_ut,bat_v\n0,0,20,0,40,\n0.1,0,20,0,40,16\n");
+        assert!(
+            e.contains("row 1, column `bat_v`")
+                && e.contains("fill them")
+                && e.contains("leave the column out"),
+            "{e}"
         );
     }
 
