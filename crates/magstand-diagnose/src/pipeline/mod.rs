@@ -55,7 +55,7 @@ pub fn diagnose(
     diagnose_observed(rec, origin, nominal, config, &Silent)
 }
 
-/// [`diagnose`], reporting each [`Stage`](crate::Stage) it reaches to `observer` (the
+/// [`diagnose`], reporting each [`Stage`] it reaches to `observer` (the
 /// diagnosis is the same, bit for bit).
 pub fn diagnose_observed(
     rec: &Recording,

@@ -170,11 +170,11 @@ pub(crate) fn heading_errors_deg(
 
 /// The apparent heading errors a correction leaves over samples ([`heading_errors_deg`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct HeadingErrors {
+pub(crate) struct HeadingErrors {
     /// The worst, degrees.
-    pub worst_deg: f64,
+    pub(crate) worst_deg: f64,
     /// The 95th percentile, degrees.
-    pub p95_deg: f64,
+    pub(crate) p95_deg: f64,
 }
 
 /// The model at [`GRID`] evenly spaced raw inputs from zero to the top of its recorded range;
