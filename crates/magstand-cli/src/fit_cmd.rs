@@ -489,7 +489,7 @@ pub fn print_choice(c: &magstand_ident::family_choice::FamilyChoice) {
     println!("chosen: {}: {}", c.chosen, c.reason);
 }
 
-/// Prints the recording's doubts about its units and columns
+/// Prints (for `fit`, `compensate` and `report`) the recording's doubts about its units and columns
 /// ([`magstand_core::Recording::doubts`]) as warnings: a model fitted on, or applied to, a
 /// field in gauss under `mag_*_ut` is 100 times off, and a `bat_v` logged as `vbat` is not
 /// used.

@@ -100,6 +100,8 @@ pub fn run(a: ReportArgs) -> Result<()> {
         inputs.push(d);
     }
     let rec = recording_csv::read(&a.recording)?;
+    // Figures of a field in gauss, or of a model applied to it, are as far off as a fit's.
+    crate::fit_cmd::warn_doubts(&rec, &a.recording.display().to_string());
     let model = a.model.as_deref().map(DisturbanceModel::load).transpose()?;
     let diagnosis = a.diagnosis.as_deref().map(Diagnosis::load).transpose()?;
     let mut prov = provenance();

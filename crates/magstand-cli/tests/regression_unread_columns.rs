@@ -2,8 +2,8 @@
 //! temperature as `Temp_C` was fitted and diagnosed as if neither had been logged, without a
 //! word: unknown columns are carried through as extra, so the diagnosis calibrated the
 //! battery's sag and took the heating from the power, while the user believed both measured.
-//! `fit`, `diagnose` and `compensate` now warn of an extra column that looks meant to be read
-//! where the column it looks like is absent.
+//! `fit`, `diagnose`, `compensate` and `report` now warn of an extra column that looks meant
+//! to be read where the column it looks like is absent.
 mod common;
 
 /// The bad input `small-stair.csv` with two more columns under `header`, each row's `cells`.
@@ -43,6 +43,20 @@ fn a_voltage_and_temperature_under_other_names_are_warned_about() {
     ]);
     assert!(
         r.ok && r.stderr.contains("`vbat` is not read"),
+        "{}",
+        r.stderr
+    );
+    let r = common::magstand(&[
+        "report",
+        "--recording",
+        &recording,
+        "--model",
+        model.to_str().unwrap(),
+        "--out",
+        dir.path().join("report").to_str().unwrap(),
+    ]);
+    assert!(
+        r.ok && r.stderr.contains("`Temp_C` is not read"),
         "{}",
         r.stderr
     );
