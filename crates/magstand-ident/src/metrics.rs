@@ -6,6 +6,15 @@ use crate::dataset::{motors_off, motors_off_reference, motors_off_rows};
 use crate::model::Model;
 use magstand_core::{Recording, Vec3};
 
+/// Percentile `q` (0..1) of `sorted` values by linear interpolation between order statistics:
+/// the one definition of a percentile in magstand's figures (a study's summaries, an export's
+/// heading error). `sorted` must not be empty.
+pub fn percentile(sorted: &[f64], q: f64) -> f64 {
+    let h = (sorted.len() - 1) as f64 * q;
+    let (lo, hi) = (h.floor() as usize, h.ceil() as usize);
+    sorted[lo] + (h - lo as f64) * (sorted[hi] - sorted[lo])
+}
+
 /// Magnetic heading in degrees (0..360) of a body-frame field, tilt-compensated with the
 /// accelerometer's specific force when given (eq. 2-3 roll and pitch), level otherwise.
 pub fn heading_deg(mag: Vec3, acc: Option<Vec3>) -> f64 {

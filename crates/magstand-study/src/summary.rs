@@ -59,12 +59,9 @@ impl Stats {
     }
 }
 
-/// Percentile of sorted values by linear interpolation between order statistics.
-pub fn percentile(sorted: &[f64], q: f64) -> f64 {
-    let h = (sorted.len() - 1) as f64 * q;
-    let (lo, hi) = (h.floor() as usize, h.ceil() as usize);
-    sorted[lo] + (h - lo as f64) * (sorted[hi] - sorted[lo])
-}
+/// Percentile of sorted values, as every figure of magstand takes one
+/// ([`magstand_ident::metrics::percentile`]).
+pub use magstand_ident::metrics::percentile;
 
 /// The scalar figures of every run and method: the disturbance RMSE against the truth (norm,
 /// then per axis, µT), the eq. 20 error (%), and the worst level-mean heading error before and

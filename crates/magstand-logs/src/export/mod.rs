@@ -26,7 +26,7 @@ use magstand_core::magnetometer_frame::SensorToBody;
 use magstand_core::magnetometer_slot::MagnetometerSlot;
 use magstand_core::{AXES, Recording, Vec3};
 use magstand_ident::compatibility::ardupilot_interference_pct;
-use magstand_ident::metrics::{heading_deg, heading_difference_deg};
+use magstand_ident::metrics::{heading_deg, heading_difference_deg, percentile};
 use magstand_ident::{InputKind, Model};
 
 use crate::LogsError;
@@ -147,7 +147,7 @@ pub(crate) struct Samples {
 
 /// The apparent heading error over samples on the model's motors-off field, for a correction
 /// that leaves `left(k)` of the disturbance at sample k, degrees: the worst, and the 95th
-/// percentile (nearest rank). Over a recording's rows the worst is often a transient no line
+/// percentile ([`percentile`], as a study's). Over a recording's rows the worst is often a transient no line
 /// can follow (the motors spinning down after the commands fell to zero, where a line in the
 /// command corrects nothing), so it can read the same with a line and without one; the
 /// percentile says what most of the rows keep.
@@ -161,10 +161,13 @@ pub(crate) fn heading_errors_deg(
         .map(|k| heading_difference_deg(heading_deg(reference + left(k), None), h0).abs())
         .collect();
     errors.sort_by(f64::total_cmp);
-    let rank = (0.95 * n as f64).ceil() as usize;
     HeadingErrors {
         worst_deg: errors.last().copied().unwrap_or(0.0),
-        p95_deg: errors.get(rank.saturating_sub(1)).copied().unwrap_or(0.0),
+        p95_deg: if errors.is_empty() {
+            0.0
+        } else {
+            percentile(&errors, 0.95)
+        },
     }
 }
 
@@ -585,15 +588,15 @@ mod tests {
     use super::*;
 
     /// A disturbance across a northward field of 20 µT that turns its heading by 1, 2, .. 80
-    /// degrees at samples 0 .. 79: the worst is 80 degrees and the 95th percentile (nearest
-    /// rank, the 76th of 80) 76.
+    /// degrees at samples 0 .. 79: the worst is 80 degrees and the 95th percentile 76.05
+    /// (0.05 of the way from the 76th of 80 to the 77th).
     #[test]
     fn heading_errors_are_the_worst_and_the_95th_percentile() {
         let reference = Vec3::new(20.0, 0.0, 40.0);
         let across = |k: usize| Vec3::new(0.0, 20.0 * ((k + 1) as f64).to_radians().tan(), 0.0);
         let e = heading_errors_deg(reference, 80, across);
         assert!((e.worst_deg - 80.0).abs() < 1e-9, "{e:?}");
-        assert!((e.p95_deg - 76.0).abs() < 1e-9, "{e:?}");
+        assert!((e.p95_deg - 76.05).abs() < 1e-9, "{e:?}");
         // In reverse order, the same figures; none for no samples.
         assert_eq!(heading_errors_deg(reference, 80, |k| across(79 - k)), e);
         let none = heading_errors_deg(reference, 0, across);
