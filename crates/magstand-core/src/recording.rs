@@ -28,13 +28,6 @@ pub struct ImuColumns {
 /// compensation multiplies ([`Recording::autopilot_throttle`]).
 pub const AUTOPILOT_THROTTLE: &str = "autopilot_throttle";
 
-/// The columns a recording's reader reads, by name or (ending in `_`) by prefix, for
-/// [`Recording::unread_column_doubts`].
-const READ_COLUMNS: [&str; 14] = [
-    "t_s", "thr", "thr_", "mag_", "bat_v", "bat_a", "temp_c", "acc_", "gyr_", "att_qw", "att_qx",
-    "att_qy", "att_qz", "true_",
-];
-
 /// Optional columns, what names a user may have given them, and what they hold.
 type Lookalike = (&'static str, fn(&str) -> bool, &'static str);
 
@@ -310,11 +303,13 @@ impl Recording {
     /// one without `temp_c` takes heating from the power, which a user who logged them
     /// would not expect.
     pub fn unread_column_doubts(&self) -> Vec<String> {
+        // The columns the recording reads, as its writer names them.
+        let read = crate::recording_csv::header(self);
         let mut doubts = Vec::new();
         for (name, _) in &self.extra {
             let lower = name.to_ascii_lowercase();
             let read_in_other_case = lower != *name
-                && READ_COLUMNS.iter().any(|r| {
+                && crate::recording_csv::READ_COLUMNS.iter().any(|r| {
                     // A name ending in `_` is a prefix of columns read.
                     if r.ends_with('_') {
                         lower.starts_with(r)
@@ -331,7 +326,8 @@ impl Recording {
             let meant = LOOKALIKES
                 .iter()
                 .find(|(_, looks_like, _)| looks_like(name));
-            if let Some((column, _, what)) = meant.filter(|(c, _, _)| !self.has_column(c)) {
+            if let Some((column, _, what)) = meant.filter(|(c, _, _)| !read.iter().any(|r| r == c))
+            {
                 doubts.push(format!(
                     "column `{name}` is not read: magstand reads {what} as `{column}`; rename it \
                      if that is what it holds"
@@ -339,16 +335,6 @@ impl Recording {
             }
         }
         doubts
-    }
-
-    /// Whether the optional column `name` (`bat_v`, `bat_a`, `temp_c`, `att_qw`) is read.
-    fn has_column(&self, name: &str) -> bool {
-        match name {
-            "bat_v" => self.bat_v.is_some(),
-            "bat_a" => self.bat_a.is_some(),
-            "temp_c" => self.temp_c.is_some(),
-            _ => self.attitude.is_some(),
-        }
     }
 
     /// Typical sample interval in seconds: the median of the intervals between rows (0 for

@@ -261,6 +261,14 @@ impl Layout {
     }
 }
 
+/// The columns [`layout`] reads, by name or (ending in `_`) by prefix: any other column is
+/// carried as extra ([`Recording::unread_column_doubts`] says where one looks meant to be
+/// read). Kept beside the reader, whose names it lists.
+pub(crate) const READ_COLUMNS: [&str; 14] = [
+    "t_s", "thr", "thr_", "mag_", "bat_v", "bat_a", "temp_c", "acc_", "gyr_", "att_qw", "att_qx",
+    "att_qy", "att_qz", "true_",
+];
+
 /// The layout of a header's column names.
 pub(crate) fn layout(names: Vec<String>, path: &Path) -> Result<Layout, CoreError> {
     if names.iter().all(|n| n.is_empty()) {
