@@ -77,8 +77,7 @@ fn run_adaptive(a: &CompensateArgs, model: &Model, origin: &str) -> Result<()> {
     }
     .check()
     .map_err(|e| anyhow::anyhow!(crate::fit_cmd::in_flag_terms(&e.to_string())))?;
-    let rec = recording_csv::read(&a.recording)?;
-    crate::fit_cmd::warn_doubts(&rec, origin);
+    let rec = files::read_recording(&a.recording)?;
     MagnetometerSlot::agreeing_with(model.magnetometer, &rec, &a.recording)?;
     let adapted = compensate_adaptive(model, &rec, origin, &cfg)?;
     files::ensure_parent(&a.out)?;
@@ -156,8 +155,7 @@ pub fn run(a: CompensateArgs) -> Result<()> {
         };
         return run_adaptive(&a, m, &origin);
     }
-    let rec = recording_csv::read(&a.recording)?;
-    crate::fit_cmd::warn_doubts(&rec, &origin);
+    let rec = files::read_recording(&a.recording)?;
     let fitted_on = match &model {
         DisturbanceModel::LocalLinear(m) => m.magnetometer,
         DisturbanceModel::Physics(m) => m.magnetometer,

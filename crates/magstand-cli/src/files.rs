@@ -1,5 +1,5 @@
-//! File handling shared by the subcommands: output folders, and the rule that no output may
-//! overwrite an input.
+//! File handling shared by the subcommands: output folders, the rule that no output may
+//! overwrite an input, and a recording read with its doubts said.
 //!
 //! Each command lists its outputs and checks them against its inputs by canonical path before
 //! it writes anything ([`refuse_overwriting_inputs`]). Behind that, every write goes through
@@ -22,6 +22,24 @@ pub fn ensure_parent(file: &Path) -> Result<()> {
         Some(dir) => ensure_dir(dir),
         None => Ok(()),
     }
+}
+
+/// Prints the recording's doubts about its units and columns
+/// ([`magstand_core::Recording::doubts`]) as warnings naming `origin`: a model fitted on, or
+/// applied to, a field in gauss under `mag_*_ut` is 100 times off, and a `bat_v` logged as
+/// `vbat` is not used.
+pub fn warn_doubts(rec: &magstand_core::Recording, origin: &str) {
+    for doubt in rec.doubts() {
+        eprintln!("warning: {origin}: {doubt}");
+    }
+}
+
+/// Reads the recording at `path` and warns of its doubts ([`warn_doubts`]): what `compensate`
+/// and `report` read (`fit` first refuses a stuck sensor, then warns).
+pub fn read_recording(path: &Path) -> Result<magstand_core::Recording> {
+    let rec = magstand_core::recording_csv::read(path)?;
+    warn_doubts(&rec, &path.display().to_string());
+    Ok(rec)
 }
 
 fn canonical(p: &Path) -> Option<PathBuf> {

@@ -489,16 +489,6 @@ pub fn print_choice(c: &magstand_ident::family_choice::FamilyChoice) {
     println!("chosen: {}: {}", c.chosen, c.reason);
 }
 
-/// Prints (for `fit`, `compensate` and `report`) the recording's doubts about its units and columns
-/// ([`magstand_core::Recording::doubts`]) as warnings: a model fitted on, or applied to, a
-/// field in gauss under `mag_*_ut` is 100 times off, and a `bat_v` logged as `vbat` is not
-/// used.
-pub(crate) fn warn_doubts(rec: &magstand_core::Recording, origin: &str) {
-    for doubt in rec.doubts() {
-        eprintln!("warning: {origin}: {doubt}");
-    }
-}
-
 /// Runs `magstand fit`.
 pub fn run(a: FitArgs) -> Result<()> {
     let plan = plan(&a)?;
@@ -523,7 +513,7 @@ pub fn run(a: FitArgs) -> Result<()> {
     {
         bail!("{origin}: {why}");
     }
-    warn_doubts(&rec, &origin);
+    files::warn_doubts(&rec, &origin);
     let slot = MagnetometerSlot::of_recording(&rec, &a.recording)?;
     let to_body = SensorToBody::of_recording(&rec, &a.recording)?;
     // Printed after the model is written: a reader that closes stdout early must not cost it.

@@ -6,7 +6,7 @@ use anyhow::{Context, Result};
 use clap::Args;
 
 use crate::files;
-use magstand_core::{Recording, recording_csv};
+use magstand_core::Recording;
 use magstand_diagnose::Diagnosis;
 use magstand_diagnose::model_choice::DisturbanceModel;
 use magstand_report::{ReportInputs, build};
@@ -99,9 +99,8 @@ pub fn run(a: ReportArgs) -> Result<()> {
     if let Some(d) = &a.diagnosis {
         inputs.push(d);
     }
-    let rec = recording_csv::read(&a.recording)?;
     // Figures of a field in gauss, or of a model applied to it, are as far off as a fit's.
-    crate::fit_cmd::warn_doubts(&rec, &a.recording.display().to_string());
+    let rec = files::read_recording(&a.recording)?;
     let model = a.model.as_deref().map(DisturbanceModel::load).transpose()?;
     let diagnosis = a.diagnosis.as_deref().map(Diagnosis::load).transpose()?;
     let mut prov = provenance();
