@@ -6,6 +6,7 @@ use anyhow::{Context, Result};
 use clap::Args;
 
 use crate::files;
+use crate::flag_terms::{DIAGNOSE_FLAGS, in_flag_terms};
 use crate::simulate_cmd::load_scenario;
 use magstand_core::magnetometer_frame::SensorToBody;
 use magstand_core::magnetometer_slot::MagnetometerSlot;
@@ -39,6 +40,11 @@ pub struct DiagnoseArgs {
     /// Family-wise significance of each decision.
     #[arg(long, default_value_t = 0.01)]
     significance: f64,
+    /// Length of the time blocks, s, every third of which is held out from the fits to judge
+    /// them [default: 1/150 of the recording, kept within 0.5..10 s]. A short recording needs
+    /// shorter blocks: at least five held out.
+    #[arg(long = "block-s")]
+    block_s: Option<f64>,
     /// Threads for the candidates (0: all cores; at most 1024).
     #[arg(long, default_value_t = 0, value_parser = clap::value_parser!(u16).range(0..=1024))]
     threads: u16,
@@ -52,11 +58,23 @@ pub fn run(a: DiagnoseArgs) -> Result<()> {
     outputs.extend(a.augmented.as_deref());
     outputs.extend(a.model_out.as_deref());
     outputs.extend(page.as_deref());
+    // A message that names a setting names its flag; any other keeps its error (and causes).
+    let in_flags = |e: magstand_diagnose::DiagnoseError| {
+        let text = e.to_string();
+        let flagged = in_flag_terms(&text, &DIAGNOSE_FLAGS);
+        if flagged == text {
+            anyhow::Error::new(e)
+        } else {
+            anyhow::anyhow!(flagged)
+        }
+    };
     let config = DiagnoseConfig {
         significance: a.significance,
+        block_s: a.block_s,
         ..Default::default()
     }
-    .check()?;
+    .check()
+    .map_err(in_flags)?;
     let nominal = match &a.scenario {
         Some(s) => load_scenario(s, &[])?,
         None => unstated_nominal()?,
@@ -75,7 +93,8 @@ pub fn run(a: DiagnoseArgs) -> Result<()> {
     let mut d = {
         // Cleared from the terminal before the summary is printed.
         let spinner = crate::progress::DiagnosisSpinner::new(&name);
-        pool.install(|| diagnose_observed(&rec, &name, &nominal, &config, &spinner))?
+        pool.install(|| diagnose_observed(&rec, &name, &nominal, &config, &spinner))
+            .map_err(in_flags)?
     };
     // The model file names the magnetometer the recording is of, for `export`.
     if a.model_out.is_some()

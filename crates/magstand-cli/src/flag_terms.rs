@@ -20,6 +20,10 @@ pub const IMPORT_FLAGS: [(&str, &str); 5] = [
     ("window_s", "--from-s/--to-s window"),
 ];
 
+/// The flags of `magstand diagnose`, by the field of `DiagnoseConfig` they set.
+pub const DIAGNOSE_FLAGS: [(&str, &str); 2] =
+    [("significance", "--significance"), ("block_s", "--block-s")];
+
 /// The flags of `magstand export`.
 pub const EXPORT_FLAGS: [(&str, &str); 1] = [("recording", "--recording R.csv")];
 

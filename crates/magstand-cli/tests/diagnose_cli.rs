@@ -159,3 +159,60 @@ fn too_short_a_recording_and_a_bad_setting_are_refused() {
     assert!(!r.ok, "{}", r.stderr);
     assert!(std::fs::read_to_string(&rec).unwrap().starts_with("t_s"));
 }
+
+/// Regression: a recording too short for the held-out blocks was refused with "a shorter
+/// block_s", a setting the command line did not have. `--block-s` now sets it, and the
+/// refusal names the flag; a block too long to mean anything is refused by the flag's name.
+#[test]
+fn a_short_recording_is_diagnosed_with_shorter_blocks_given_by_block_s() {
+    let dir = tempfile::tempdir().unwrap();
+    let full = simulate(
+        dir.path(),
+        "short",
+        &["program.dwell_s=0.2", "stand.enabled=false"],
+    );
+    // Four seconds of the stair's middle, where the motors run: eight blocks of the default
+    // 0.5 s, two of them held out.
+    let text = std::fs::read_to_string(&full).unwrap();
+    let lines: Vec<&str> = text.lines().collect();
+    let short = dir.path().join("short.csv");
+    let rows = [&lines[..1], &lines[1201..1601]].concat();
+    std::fs::write(&short, rows.join("\n") + "\n").unwrap();
+    let json = dir.path().join("d.json");
+    let run = |extra: &[&str]| {
+        let mut args = vec![
+            "diagnose",
+            "--recording",
+            short.to_str().unwrap(),
+            "--scenario",
+            "builtin:bench-supply-stair",
+            "--json",
+            json.to_str().unwrap(),
+        ];
+        args.extend(extra);
+        magstand(&args)
+    };
+    let r = run(&[]);
+    assert!(
+        !r.ok && r.stderr.contains("held-out blocks") && r.stderr.contains("`--block-s`"),
+        "{}",
+        r.stderr
+    );
+    assert!(
+        !json.exists(),
+        "a refused diagnosis wrote {}",
+        json.display()
+    );
+    let r = run(&["--block-s", "0.1"]);
+    assert!(r.ok, "{}", r.stderr);
+    let d = magstand_diagnose::Diagnosis::load(&json).unwrap();
+    assert_eq!(d.settings.block_s, 0.1, "{:?}", d.settings);
+    for bad in ["0", "-1", "1e308", "NaN"] {
+        let r = run(&["--block-s", bad]);
+        assert!(
+            !r.ok && r.stderr.contains("`--block-s`") && !r.stderr.contains("panicked"),
+            "--block-s {bad}: {}",
+            r.stderr
+        );
+    }
+}

@@ -9,11 +9,16 @@ pub struct DiagnoseConfig {
     pub significance: f64,
     /// Every `holdout_every`-th time block is held out from all fits and used only to judge.
     pub holdout_every: usize,
-    /// Length of a time block, s; `None` picks 1/150 of the recording, kept in 0.5..10 s.
+    /// Length of a time block, s, at most [`MAX_BLOCK_S`]; `None` picks 1/150 of the
+    /// recording, kept in 0.5..10 s.
     pub block_s: Option<f64>,
     /// Most terms accepted before the search stops.
     pub max_terms: usize,
 }
+
+/// Longest time block, s: five held-out blocks of an hour already take fifteen hours of
+/// recording, and a longer one is a unit slip (milliseconds for seconds), not a plan.
+pub const MAX_BLOCK_S: f64 = 3600.0;
 
 impl Default for DiagnoseConfig {
     fn default() -> Self {
@@ -63,9 +68,13 @@ impl DiagnoseConfig {
             ));
         }
         if let Some(b) = self.block_s
-            && !(b.is_finite() && b > 0.0)
+            && !(b > 0.0 && b <= MAX_BLOCK_S)
         {
-            return Err(invalid("block_s", b, "a positive number of seconds"));
+            return Err(invalid(
+                "block_s",
+                b,
+                &format!("a positive number of seconds up to {MAX_BLOCK_S}"),
+            ));
         }
         if !(1..=16).contains(&self.max_terms) {
             return Err(invalid("max_terms", self.max_terms, "an integer in 1..=16"));
@@ -97,5 +106,26 @@ mod tests {
         .unwrap_err()
         .to_string();
         assert!(e.contains("block_s"), "{e}");
+        for too_long in [3600.5, 1e308, f64::INFINITY] {
+            let e = DiagnoseConfig {
+                block_s: Some(too_long),
+                ..Default::default()
+            }
+            .check()
+            .unwrap_err()
+            .to_string();
+            assert!(
+                e.contains("block_s") && e.contains("3600"),
+                "{too_long}: {e}"
+            );
+        }
+        let hour = DiagnoseConfig {
+            block_s: Some(MAX_BLOCK_S),
+            ..Default::default()
+        };
+        assert!(
+            hour.check().is_ok(),
+            "a block of {MAX_BLOCK_S} s is allowed"
+        );
     }
 }

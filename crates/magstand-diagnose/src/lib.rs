@@ -77,7 +77,7 @@ mod stats;
 mod versioned_json;
 
 pub use augmented_model::AugmentedModel;
-pub use config::{DiagnoseConfig, ValidConfig};
+pub use config::{DiagnoseConfig, MAX_BLOCK_S, ValidConfig};
 pub use diagnosis::{Diagnosis, UNEXPLAINED};
 pub use effects::{Context, Effect, EffectFit, Param, catalog};
 pub use error::DiagnoseError;

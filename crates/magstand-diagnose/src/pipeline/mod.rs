@@ -183,7 +183,7 @@ fn prepare(
     if split.holdout_blocks() < MIN_HOLDOUT_BLOCKS || split.fit_rows() < 50 {
         return Err(bad(format!(
             "{} rows in {} held-out blocks of {:.2} s: expected at least 50 rows to fit and {} \
-             held-out blocks (a longer recording, or a shorter block_s)",
+             held-out blocks (a longer recording, or a shorter `block_s`)",
             rec.len(),
             split.holdout_blocks(),
             split.block_s,
