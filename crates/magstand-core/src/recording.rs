@@ -263,13 +263,51 @@ impl Recording {
     /// magnitude is beyond a factor 5 of the Earth's (22 to 67 µT at the surface), as
     /// readings in gauss, milligauss or nanotesla would be; an extra column named like
     /// `bat_v`, `bat_a`, `temp_c` or the attitude where that column is absent
-    /// ([`Recording::unread_column_doubts`]). Warnings, not errors: a stand may cancel the
-    /// Earth's field, a log may be slow, and a column may hold something else. Empty where
-    /// none is seen.
+    /// ([`Recording::unread_column_doubts`]); a logged supply voltage that drops out while
+    /// the motors are commanded ([`Recording::supply_dropout_doubts`]). Warnings, not errors:
+    /// a stand may cancel the Earth's field, a log may be slow, a column may hold something
+    /// else, and a supply may fail. Empty where none is seen.
     pub fn doubts(&self) -> Vec<String> {
         let mut doubts = self.unit_doubts();
         doubts.extend(self.unread_column_doubts());
+        doubts.extend(self.supply_dropout_doubts());
         doubts
+    }
+
+    /// The doubt of [`Recording::doubts`] about `bat_v`: rows whose motors are commanded and
+    /// whose logged voltage is below half its median over such rows. No pack or bench runs
+    /// its motors there (a LiPo from full to empty spans 4.2 to 3.3 V a cell, and sags a few
+    /// tenths under load), but a logger that writes 0 before its sensor answers, or a
+    /// dropped sample, does; the replay drives its motors with the logged voltage, so each
+    /// such row stops them in the model while the recorded field shows them running.
+    pub fn supply_dropout_doubts(&self) -> Vec<String> {
+        let Some(bat_v) = self.bat_v.as_deref() else {
+            return Vec::new();
+        };
+        let commanded: Vec<usize> = (0..self.len())
+            .filter(|&r| self.thr.iter().any(|c| c[r] > 0.0))
+            .collect();
+        let mut levels: Vec<f64> = commanded.iter().map(|&r| bat_v[r]).collect();
+        let Some(median_v) = upper_median(&mut levels).filter(|&m| m > 0.0) else {
+            return Vec::new();
+        };
+        let low: Vec<usize> = commanded
+            .into_iter()
+            .filter(|&r| bat_v[r] < 0.5 * median_v)
+            .collect();
+        let Some(&first) = low.first() else {
+            return Vec::new();
+        };
+        vec![format!(
+            "bat_v is below half its median ({median_v:.3} V) on {} of the rows whose motors are \
+             commanded, the first data row {} (t_s = {:.3} s, {:.3} V): a logger's dropout? \
+             The motors are driven with the logged voltage, which stops them in the model at \
+             those rows; fill them with the voltage around them, or leave bat_v out",
+            low.len(),
+            first + 1,
+            self.t_s[first],
+            bat_v[first]
+        )]
     }
 
     /// The doubts of [`Recording::doubts`] about the units of `t_s` and `mag_*_ut`.

@@ -784,6 +784,37 @@ mod tests {
     /// not used: the recording says so where the column it looks like is absent, and says
     /// nothing of the extra columns `import` writes or of a lookalike beside the real one.
     #[test]
+    fn a_supply_voltage_that_drops_out_while_the_motors_run_is_doubted() {
+        let text = |cells: &[&str]| {
+            let mut t = String::from("t_s,thr,mag_x_ut,mag_y_ut,mag_z_ut,bat_v\n");
+            for (r, c) in cells.iter().enumerate() {
+                t += &format!("{}.0,{c},20,0,40,", r);
+                t += if *c == "0" { "16.8\n" } else { "16.2\n" };
+            }
+            t
+        };
+        let mut rows = vec!["0", "0.5", "0.5", "0.5", "0.5", "0"];
+        let clean = read_str(&text(&rows), "r.csv").unwrap();
+        assert!(clean.doubts().is_empty(), "{:?}", clean.doubts());
+        // A 0 V sample at the fourth data row while the motors run.
+        let glitch = text(&rows).replacen("3.0,0.5,20,0,40,16.2", "3.0,0.5,20,0,40,0", 1);
+        let d = read_str(&glitch, "r.csv").unwrap().doubts();
+        assert!(
+            d.len() == 1
+                && d[0].contains("bat_v")
+                && d[0].contains("on 1 of the rows")
+                && d[0].contains("data row 4")
+                && d[0].contains("16.200 V"),
+            "{d:?}"
+        );
+        // A supply switched off with the motors (0 V while nothing is commanded) is no doubt.
+        rows.push("0");
+        let off = text(&rows).replace("5.0,0,20,0,40,16.8", "5.0,0,20,0,40,0");
+        let off = read_str(&off, "r.csv").unwrap();
+        assert!(off.doubts().is_empty(), "{:?}", off.doubts());
+    }
+
+    #[test]
     fn unread_columns_that_look_meant_are_doubted() {
         let doubts = |header: &str, cells: &str| {
             let text =
