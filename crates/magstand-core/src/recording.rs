@@ -278,8 +278,9 @@ impl Recording {
     /// whose logged voltage is below half its median over such rows. No pack or bench runs
     /// its motors there (a LiPo from full to empty spans 4.2 to 3.3 V a cell, and sags a few
     /// tenths under load), but a logger that writes 0 before its sensor answers, or a
-    /// dropped sample, does; the replay drives its motors with the logged voltage, so each
-    /// such row stops them in the model while the recorded field shows them running.
+    /// dropped sample, does; a replay that follows the logged voltage (a battery followed
+    /// through `bat_v`, a physics fit) drives its motors with it, so each such row stops them
+    /// in the model while the recorded field shows them running.
     pub fn supply_dropout_doubts(&self) -> Vec<String> {
         let Some(bat_v) = self.bat_v.as_deref() else {
             return Vec::new();
@@ -301,8 +302,8 @@ impl Recording {
         vec![format!(
             "bat_v is below half its median ({median_v:.3} V) on {} of the rows whose motors are \
              commanded, the first data row {} (t_s = {:.3} s, {:.3} V): a logger's dropout? \
-             The motors are driven with the logged voltage, which stops them in the model at \
-             those rows; fill them with the voltage around them, or leave bat_v out",
+             Where the logged voltage drives the replayed motors, it stops them at those rows; \
+             fill them with the voltage around them, or leave bat_v out",
             low.len(),
             first + 1,
             self.t_s[first],
