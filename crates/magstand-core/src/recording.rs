@@ -264,14 +264,50 @@ impl Recording {
     /// readings in gauss, milligauss or nanotesla would be; an extra column named like
     /// `bat_v`, `bat_a`, `temp_c` or the attitude where that column is absent
     /// ([`Recording::unread_column_doubts`]); a logged supply voltage that drops out while
-    /// the motors are commanded ([`Recording::supply_dropout_doubts`]). Warnings, not errors:
+    /// the motors are commanded ([`Recording::supply_dropout_doubts`]) and a logged
+    /// temperature that steps faster than a board warms
+    /// ([`Recording::temperature_jump_doubts`]). Warnings, not errors:
     /// a stand may cancel the Earth's field, a log may be slow, a column may hold something
     /// else, and a supply may fail. Empty where none is seen.
     pub fn doubts(&self) -> Vec<String> {
         let mut doubts = self.unit_doubts();
         doubts.extend(self.unread_column_doubts());
         doubts.extend(self.supply_dropout_doubts());
+        doubts.extend(self.temperature_jump_doubts());
         doubts
+    }
+
+    /// The doubt of [`Recording::doubts`] about `temp_c`: steps between consecutive rows of
+    /// more than 5 °C at more than 1 °C/s. A board
+    /// near motor wiring warms by degrees a minute, and no sensor on it moves that fast; a
+    /// logger's dropout (0 or -40 °C for an unread sensor) or another column's value does.
+    /// A diagnosis with `temp_c` takes the board's heating from it, so each step is a step
+    /// of the modelled field.
+    pub fn temperature_jump_doubts(&self) -> Vec<String> {
+        let Some(temp_c) = self.temp_c.as_deref() else {
+            return Vec::new();
+        };
+        let jumps: Vec<usize> = (1..self.len())
+            .filter(|&r| {
+                let step_c = (temp_c[r] - temp_c[r - 1]).abs();
+                let dt_s = self.t_s[r] - self.t_s[r - 1];
+                step_c > TEMPERATURE_JUMP_C && step_c > TEMPERATURE_RATE_C_PER_S * dt_s
+            })
+            .collect();
+        let Some(&first) = jumps.first() else {
+            return Vec::new();
+        };
+        vec![format!(
+            "temp_c steps by more than {TEMPERATURE_JUMP_C} °C between consecutive rows on {} \
+             rows, the first at data row {} (t_s = {:.3} s: {:.2} -> {:.2} °C), faster than a \
+             board warms: a logger's dropout? The board's heating is taken from temp_c; fill \
+             those rows with the temperature around them, or leave temp_c out",
+            jumps.len(),
+            first + 1,
+            self.t_s[first],
+            temp_c[first - 1],
+            temp_c[first]
+        )]
     }
 
     /// The doubt of [`Recording::doubts`] about `bat_v`: rows whose motors are commanded and
@@ -490,6 +526,14 @@ pub fn typical_interval_s(t_s: &[f64]) -> f64 {
 
 /// The median of `values` (the upper of the two middle ones for an even count), reordering
 /// them; None for none.
+/// A step of `temp_c` between two rows beyond which it is doubted, °C (with
+/// [`TEMPERATURE_RATE_C_PER_S`]).
+const TEMPERATURE_JUMP_C: f64 = 5.0;
+
+/// A rate of `temp_c` beyond which a step of more than [`TEMPERATURE_JUMP_C`] is doubted, °C/s:
+/// a tenfold margin over a board beside motor wiring warming by degrees a minute.
+const TEMPERATURE_RATE_C_PER_S: f64 = 1.0;
+
 fn upper_median(values: &mut [f64]) -> Option<f64> {
     let mid = values.len() / 2;
     (!values.is_empty()).then(|| *values.select_nth_unstable_by(mid, f64::total_cmp).1)

@@ -815,6 +815,40 @@ mod tests {
     }
 
     #[test]
+    fn a_temperature_that_steps_faster_than_a_board_warms_is_doubted() {
+        // One row a second, warming 0.5 °C a row: no doubt.
+        let text = |glitch: Option<(usize, &str)>| {
+            let mut t = String::from("t_s,thr,mag_x_ut,mag_y_ut,mag_z_ut,temp_c\n");
+            for r in 0..8 {
+                let temp = match glitch {
+                    Some((g, v)) if g == r => v.to_string(),
+                    _ => format!("{}", 25.0 + 0.5 * r as f64),
+                };
+                t += &format!("{r}.0,0.5,20,0,40,{temp}\n");
+            }
+            t
+        };
+        let clean = read_str(&text(None), "r.csv").unwrap();
+        assert!(clean.doubts().is_empty(), "{:?}", clean.doubts());
+        // An unread sensor's 0 °C at the sixth data row: a step down and one back up.
+        let d = read_str(&text(Some((5, "0"))), "r.csv").unwrap().doubts();
+        assert!(
+            d.len() == 1
+                && d[0].contains("temp_c")
+                && d[0].contains("on 2 rows")
+                && d[0].contains("data row 6")
+                && d[0].contains("27.00 -> 0.00"),
+            "{d:?}"
+        );
+        // Ten degrees over a 20-minute gap between two runs is a board cooling, not a doubt.
+        let gap = "t_s,thr,mag_x_ut,mag_y_ut,mag_z_ut,temp_c\n\
+                   0,0.5,20,0,40,25\n1,0.5,20,0,40,25.5\n2,0.5,20,0,40,26\n\
+                   1202,0.5,20,0,40,16\n1203,0.5,20,0,40,16.5\n1204,0.5,20,0,40,17\n";
+        let gap = read_str(gap, "r.csv").unwrap();
+        assert!(gap.doubts().is_empty(), "{:?}", gap.doubts());
+    }
+
+    #[test]
     fn unread_columns_that_look_meant_are_doubted() {
         let doubts = |header: &str, cells: &str| {
             let text =
