@@ -266,7 +266,8 @@ impl Recording {
     /// ([`Recording::unread_column_doubts`]); a logged supply voltage that drops out while
     /// the motors are commanded ([`Recording::supply_dropout_doubts`]) and a logged
     /// temperature that steps faster than a board warms
-    /// ([`Recording::temperature_jump_doubts`]). Warnings, not errors:
+    /// ([`Recording::temperature_jump_doubts`]); on a stand, a field that leaves and comes
+    /// back within one row ([`Recording::magnetometer_spike_doubts`]). Warnings, not errors:
     /// a stand may cancel the Earth's field, a log may be slow, a column may hold something
     /// else, and a supply may fail. Empty where none is seen.
     pub fn doubts(&self) -> Vec<String> {
@@ -274,7 +275,62 @@ impl Recording {
         doubts.extend(self.unread_column_doubts());
         doubts.extend(self.supply_dropout_doubts());
         doubts.extend(self.temperature_jump_doubts());
+        doubts.extend(self.magnetometer_spike_doubts());
         doubts
+    }
+
+    /// The doubt of [`Recording::doubts`] about `mag_*_ut` on a stand (no attitude logged): a
+    /// single row that leaves both its neighbours by more than 10 µT and 20
+    /// times the axis's median step, in the same direction, while the neighbours agree
+    /// within half that. The field of a restrained vehicle follows its currents through
+    /// spin-up lags and does not come back within one row; a sensor's read error does.
+    /// Least squares weighs such a row by its square: on the independent generator's
+    /// control, four rows of +300 µT in 25,000 raised the diagnosis's held-out RMSE on x
+    /// from 0.207 to 0.232 µT. (In flight the Earth's field turns with the vehicle, and a fast turn can look
+    /// like this: a flight is not doubted.)
+    pub fn magnetometer_spike_doubts(&self) -> Vec<String> {
+        if self.attitude.is_some() || self.len() < 3 {
+            return Vec::new();
+        }
+        let mut spikes: Vec<(usize, usize)> = Vec::new();
+        for axis in 0..3 {
+            let m: Vec<f64> = self.mag_ut.iter().map(|v| v[axis]).collect();
+            let mut steps: Vec<f64> = m.windows(2).map(|w| (w[1] - w[0]).abs()).collect();
+            let Some(median_step) = upper_median(&mut steps) else {
+                continue;
+            };
+            let beyond = SPIKE_FLOOR_UT.max(20.0 * median_step);
+            spikes.extend(
+                m.windows(3)
+                    .enumerate()
+                    .filter(|(_, w)| {
+                        let (up, down) = (w[1] - w[0], w[1] - w[2]);
+                        up.abs() > beyond
+                            && down.abs() > beyond
+                            && up * down > 0.0
+                            && (w[2] - w[0]).abs() < 0.5 * beyond
+                    })
+                    .map(|(r, _)| (r + 1, axis)),
+            );
+        }
+        spikes.sort_unstable();
+        let Some(&(first, axis)) = spikes.first() else {
+            return Vec::new();
+        };
+        let m = |r: usize| self.mag_ut[r][axis];
+        vec![format!(
+            "the field leaves both neighbouring rows and comes back on {} row(s), the first at \
+             data row {} (t_s = {:.3} s, mag_{}_ut {:.2} -> {:.2} -> {:.2} µT), where a stand's \
+             field follows its currents: a sensor's read error? Each such row weighs on every \
+             fit by its square; leave those rows out",
+            spikes.len(),
+            first + 1,
+            self.t_s[first],
+            ["x", "y", "z"][axis],
+            m(first - 1),
+            m(first),
+            m(first + 1)
+        )]
     }
 
     /// The doubt of [`Recording::doubts`] about `temp_c`: steps between consecutive rows of
@@ -526,6 +582,10 @@ pub fn typical_interval_s(t_s: &[f64]) -> f64 {
 
 /// The median of `values` (the upper of the two middle ones for an even count), reordering
 /// them; None for none.
+/// The least jump of a single row of `mag_*_ut` away from both its neighbours and back that
+/// is doubted, µT: a fifth of the Earth's weakest field, and far beyond a magnetometer's noise.
+const SPIKE_FLOOR_UT: f64 = 10.0;
+
 /// A step of `temp_c` between two rows beyond which it is doubted, °C (with
 /// [`TEMPERATURE_RATE_C_PER_S`]).
 const TEMPERATURE_JUMP_C: f64 = 5.0;

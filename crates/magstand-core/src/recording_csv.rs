@@ -849,6 +849,39 @@ mod tests {
     }
 
     #[test]
+    fn a_field_that_leaves_and_comes_back_within_a_row_is_doubted_on_a_stand() {
+        // A stand's field: noise, then a step up where the motors start (no doubt).
+        let text = |spike_ut: f64, attitude: bool| {
+            let mut t = String::from("t_s,thr,mag_x_ut,mag_y_ut,mag_z_ut");
+            t += if attitude {
+                ",att_qw,att_qx,att_qy,att_qz\n"
+            } else {
+                "\n"
+            };
+            for r in 0..40 {
+                let x = 20.0 + 0.1 * ((r * 7 % 5) as f64) + if r >= 20 { 15.0 } else { 0.0 };
+                let x = if r == 30 { x + spike_ut } else { x };
+                t += &format!("{r}.0,0.5,{x},0,40");
+                t += if attitude { ",1,0,0,0\n" } else { "\n" };
+            }
+            t
+        };
+        let clean = read_str(&text(0.0, false), "r.csv").unwrap();
+        assert!(clean.doubts().is_empty(), "{:?}", clean.doubts());
+        let d = read_str(&text(300.0, false), "r.csv").unwrap().doubts();
+        assert!(
+            d.len() == 1
+                && d[0].contains("on 1 row(s)")
+                && d[0].contains("data row 31")
+                && d[0].contains("mag_x_ut"),
+            "{d:?}"
+        );
+        // In flight the Earth's field turns with the vehicle: not doubted.
+        let flight = read_str(&text(300.0, true), "r.csv").unwrap();
+        assert!(flight.doubts().is_empty(), "{:?}", flight.doubts());
+    }
+
+    #[test]
     fn unread_columns_that_look_meant_are_doubted() {
         let doubts = |header: &str, cells: &str| {
             let text =
