@@ -163,6 +163,8 @@ fn too_short_a_recording_and_a_bad_setting_are_refused() {
 /// Regression: a recording too short for the held-out blocks was refused with "a shorter
 /// block_s", a setting the command line did not have. `--block-s` now sets it, and the
 /// refusal names the flag; a block too long to mean anything is refused by the flag's name.
+/// Where too few rows are left to fit on, which shorter blocks cannot change, the refusal
+/// says how many rows it takes (it offered the shorter blocks there too, on a real 1 Hz log).
 #[test]
 fn a_short_recording_is_diagnosed_with_shorter_blocks_given_by_block_s() {
     let dir = tempfile::tempdir().unwrap();
@@ -207,6 +209,23 @@ fn a_short_recording_is_diagnosed_with_shorter_blocks_given_by_block_s() {
     assert!(r.ok, "{}", r.stderr);
     let d = magstand_diagnose::Diagnosis::load(&json).unwrap();
     assert_eq!(d.settings.block_s, 0.1, "{:?}", d.settings);
+    // Too few rows to fit on: shorter blocks would not help (a third stays held out), and
+    // the refusal says how many rows it takes instead.
+    let few = dir.path().join("few.csv");
+    let rows = [&lines[..1], &lines[1201..1261]].concat();
+    std::fs::write(&few, rows.join("\n") + "\n").unwrap();
+    let r = magstand(&[
+        "diagnose",
+        "--recording",
+        few.to_str().unwrap(),
+        "--block-s",
+        "0.01",
+    ]);
+    assert!(
+        !r.ok && r.stderr.contains("about 75 rows") && !r.stderr.contains("--block-s"),
+        "{}",
+        r.stderr
+    );
     for bad in ["0", "-1", "1e308", "NaN"] {
         let r = run(&["--block-s", bad]);
         assert!(

@@ -45,6 +45,9 @@ use forward::BaselineFit;
 /// Fewest held-out blocks for the paired tests to mean anything.
 const MIN_HOLDOUT_BLOCKS: usize = 5;
 
+/// Fewest rows a diagnosis fits on (outside the held-out blocks).
+const MIN_FIT_ROWS: usize = 50;
+
 /// Diagnoses `rec` (named `origin` in messages) against the nominal scenario.
 pub fn diagnose(
     rec: &Recording,
@@ -180,10 +183,22 @@ fn prepare(
         return Err(bad(why));
     }
     let split = held_out_split(&rec.t_s, cfg.block_s, cfg.holdout_every);
-    if split.holdout_blocks() < MIN_HOLDOUT_BLOCKS || split.fit_rows() < 50 {
+    if split.holdout_blocks() < MIN_HOLDOUT_BLOCKS || split.fit_rows() < MIN_FIT_ROWS {
+        // Shorter blocks give more of them, not more rows to fit: a third of the rows stays
+        // held out whatever their length.
+        let remedy = if split.fit_rows() < MIN_FIT_ROWS {
+            format!(
+                "a longer recording: with one block in {} held out, {MIN_FIT_ROWS} rows to fit \
+                 take about {} rows",
+                cfg.holdout_every,
+                MIN_FIT_ROWS * cfg.holdout_every / (cfg.holdout_every - 1)
+            )
+        } else {
+            "a longer recording, or a shorter `block_s`".to_string()
+        };
         return Err(bad(format!(
-            "{} rows in {} held-out blocks of {:.2} s: expected at least 50 rows to fit and {} \
-             held-out blocks (a longer recording, or a shorter `block_s`)",
+            "{} rows in {} held-out blocks of {:.2} s: expected at least {MIN_FIT_ROWS} rows to \
+             fit and {} held-out blocks ({remedy})",
             rec.len(),
             split.holdout_blocks(),
             split.block_s,
