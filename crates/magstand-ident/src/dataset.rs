@@ -359,7 +359,7 @@ impl Dataset {
         }
         check_input(rec, kind, origin)?;
         let off = motors_off_rows(rec);
-        let reference_ut = motors_off_reference(rec, &off).or(fallback_reference_ut).ok_or_else(|| data_err("no motors-off rows (every thr = 0) to take the eq. 9 reference from; record a few seconds with the motors off (for a flight with its Earth field taken out, one whose input comes down near zero will do)".into()))?;
+        let reference_ut = motors_off_reference(rec, &off).or(fallback_reference_ut).ok_or_else(|| data_err("no motors-off rows (rows whose every thr is 0) to take the eq. 9 reference from; record a few seconds with the motors off (for a flight with its Earth field taken out, one whose input comes down near zero will do)".into()))?;
         let (spec, u, x) = inputs(rec, kind, &off, origin)?;
         Ok(Dataset {
             origin: origin.into(),
