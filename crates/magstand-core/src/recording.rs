@@ -280,14 +280,14 @@ impl Recording {
     }
 
     /// The doubt of [`Recording::doubts`] about `mag_*_ut` on a stand (no attitude logged): a
-    /// single row that leaves both its neighbours by more than 10 µT and 20
-    /// times the axis's median step, in the same direction, while the neighbours agree
-    /// within half that. The field of a restrained vehicle follows its currents through
-    /// spin-up lags and does not come back within one row; a sensor's read error does.
-    /// Least squares weighs such a row by its square: on the independent generator's
-    /// control, four rows of +300 µT in 25,000 raised the diagnosis's held-out RMSE on x
-    /// from 0.207 to 0.232 µT. (In flight the Earth's field turns with the vehicle, and a fast turn can look
-    /// like this: a flight is not doubted.)
+    /// single row that leaves both its neighbours by more than 10 µT and 20 times the axis's
+    /// median step, in the same direction, while the neighbours agree within half that. The
+    /// field of a restrained vehicle follows its currents through spin-up lags and does not
+    /// come back within one row; a sensor's read error does. Least squares weighs such a row
+    /// by its square: on the independent generator's control, four rows of +300 µT in 25,000
+    /// raised the diagnosis's held-out RMSE on x from 0.207 to 0.232 µT. (In flight the
+    /// Earth's field turns with the vehicle, and a fast turn can look like this: a flight is
+    /// not doubted.)
     pub fn magnetometer_spike_doubts(&self) -> Vec<String> {
         if self.attitude.is_some() || self.len() < 3 {
             return Vec::new();
@@ -334,11 +334,10 @@ impl Recording {
     }
 
     /// The doubt of [`Recording::doubts`] about `temp_c`: steps between consecutive rows of
-    /// more than 5 °C at more than 1 °C/s. A board
-    /// near motor wiring warms by degrees a minute, and no sensor on it moves that fast; a
-    /// logger's dropout (0 or -40 °C for an unread sensor) or another column's value does.
-    /// A diagnosis with `temp_c` takes the board's heating from it, so each step is a step
-    /// of the modelled field.
+    /// more than 5 °C at more than 1 °C/s. A board near motor wiring warms by degrees a
+    /// minute, and no sensor on it moves that fast; a logger's dropout (0 or -40 °C for an
+    /// unread sensor) or another column's value does. A diagnosis with `temp_c` takes the
+    /// board's heating from it, so each step is a step of the modelled field.
     pub fn temperature_jump_doubts(&self) -> Vec<String> {
         let Some(temp_c) = self.temp_c.as_deref() else {
             return Vec::new();
@@ -354,10 +353,10 @@ impl Recording {
             return Vec::new();
         };
         vec![format!(
-            "temp_c steps by more than {TEMPERATURE_JUMP_C} °C between consecutive rows on {} \
-             rows, the first at data row {} (t_s = {:.3} s: {:.2} -> {:.2} °C), faster than a \
-             board warms: a logger's dropout? The board's heating is taken from temp_c; fill \
-             those rows with the temperature around them, or leave temp_c out",
+            "temp_c steps by more than {TEMPERATURE_JUMP_C} °C between consecutive rows {} \
+             time(s), the first into data row {} (t_s = {:.3} s: {:.2} -> {:.2} °C), faster \
+             than a board warms: a logger's dropout? The board's heating is taken from temp_c; \
+             fill those rows with the temperature around them, or leave temp_c out",
             jumps.len(),
             first + 1,
             self.t_s[first],

@@ -835,8 +835,8 @@ mod tests {
         assert!(
             d.len() == 1
                 && d[0].contains("temp_c")
-                && d[0].contains("on 2 rows")
-                && d[0].contains("data row 6")
+                && d[0].contains("rows 2 time(s)")
+                && d[0].contains("into data row 6")
                 && d[0].contains("27.00 -> 0.00"),
             "{d:?}"
         );
