@@ -231,3 +231,33 @@ fn a_compass_the_firmware_does_not_use_is_said() {
     assert!(third.contains("COMPASS_USE3 = 0"), "{third}");
     assert_eq!(note(1), None);
 }
+
+/// The doubts `fit`, `diagnose`, `compensate` and `report` warn of (units, unread columns, a
+/// supply that drops out) are about glitches: every real log that imports reads without one.
+/// (A supply that sags in flight, a current at idle and a fast turn are a vehicle's own.)
+#[test]
+fn imported_real_logs_raise_no_doubt() {
+    let dir = log("");
+    let mut read = 0;
+    for entry in std::fs::read_dir(&dir).unwrap() {
+        let path = entry.unwrap().path();
+        let is_log = matches!(
+            path.extension().and_then(|e| e.to_str()),
+            Some("ulg" | "bin")
+        );
+        if !is_log {
+            continue;
+        }
+        let Ok((rec, _)) = import_file(&path, &ImportOptions::default()) else {
+            continue;
+        };
+        read += 1;
+        let doubts = rec.doubts();
+        assert!(doubts.is_empty(), "{}: {doubts:?}", path.display());
+    }
+    assert!(
+        read >= 7,
+        "only {read} real logs imported from {}",
+        dir.display()
+    );
+}
