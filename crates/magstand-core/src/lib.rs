@@ -44,8 +44,8 @@ pub mod seeds;
 
 pub use error::CoreError;
 pub use recording::{
-    AUTOPILOT_THROTTLE, GAP_INTERVALS, GroundTruth, ImuColumns, Recording, rows_after_gaps,
-    typical_interval_s,
+    AUTOPILOT_THROTTLE, GAP_INTERVALS, GroundTruth, ImuColumns, OFF_COMMAND, Recording,
+    rows_after_gaps, typical_interval_s,
 };
 
 /// Whether `v` is a finite number of magnitude at most `limit`: the test every reader and

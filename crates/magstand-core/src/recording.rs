@@ -28,6 +28,9 @@ pub struct ImuColumns {
 /// compensation multiplies ([`Recording::autopilot_throttle`]).
 pub const AUTOPILOT_THROTTLE: &str = "autopilot_throttle";
 
+/// A row counts as motors-off when every command is at most this.
+pub const OFF_COMMAND: f64 = 1e-6;
+
 /// Optional columns, what names a user may have given them, and what they hold.
 type Lookalike = (&'static str, fn(&str) -> bool, &'static str);
 
@@ -122,6 +125,11 @@ impl Recording {
     /// True when the recording has no rows.
     pub fn is_empty(&self) -> bool {
         self.t_s.is_empty()
+    }
+
+    /// Whether every motor command of `row` is off (at most [`OFF_COMMAND`]).
+    pub fn motors_off(&self, row: usize) -> bool {
+        self.thr.iter().all(|m| m[row] <= OFF_COMMAND)
     }
 
     /// Number of motor command columns (1 when only the overall throttle was recorded).
@@ -326,7 +334,7 @@ impl Recording {
             spikes.len(),
             first + 1,
             self.t_s[first],
-            ["x", "y", "z"][axis],
+            crate::AXES[axis],
             m(first - 1),
             m(first),
             m(first + 1)
@@ -365,8 +373,9 @@ impl Recording {
         )]
     }
 
-    /// The doubt of [`Recording::doubts`] about `bat_v`: rows whose motors are commanded and
-    /// whose logged voltage is below half its median over such rows. No pack or bench runs
+    /// The doubt of [`Recording::doubts`] about `bat_v`: rows whose motors are commanded (not
+    /// [`Recording::motors_off`]) and whose logged voltage is below half its median over such
+    /// rows. No pack or bench runs
     /// its motors there (a LiPo from full to empty spans 4.2 to 3.3 V a cell, and sags a few
     /// tenths under load), but a logger that writes 0 before its sensor answers, or a
     /// dropped sample, does; a replay that follows the logged voltage (a battery followed
@@ -376,9 +385,7 @@ impl Recording {
         let Some(bat_v) = self.bat_v.as_deref() else {
             return Vec::new();
         };
-        let commanded: Vec<usize> = (0..self.len())
-            .filter(|&r| self.thr.iter().any(|c| c[r] > 0.0))
-            .collect();
+        let commanded: Vec<usize> = (0..self.len()).filter(|&r| !self.motors_off(r)).collect();
         let mut levels: Vec<f64> = commanded.iter().map(|&r| bat_v[r]).collect();
         let Some(median_v) = upper_median(&mut levels).filter(|&m| m > 0.0) else {
             return Vec::new();

@@ -147,12 +147,13 @@ pub struct Dataset {
     split: std::sync::OnceLock<Arc<magstand_core::held_out::Split>>,
 }
 
-/// A row counts as motors-off when every command is at most this.
-pub const OFF_COMMAND: f64 = 1e-6;
+/// A row counts as motors-off when every command is at most this (one definition for every
+/// crate: the recording's own).
+pub use magstand_core::OFF_COMMAND;
 
-/// Whether every motor command of `row` is off (at most [`OFF_COMMAND`]).
+/// Whether every motor command of `row` is off ([`Recording::motors_off`]).
 pub fn motors_off(rec: &Recording, row: usize) -> bool {
-    rec.thr.iter().all(|m| m[row] <= OFF_COMMAND)
+    rec.motors_off(row)
 }
 
 /// The motors-off rows of a recording.
