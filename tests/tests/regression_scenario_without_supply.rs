@@ -59,6 +59,14 @@ fn a_scenario_that_states_no_supply_is_replayed_on_a_constant_voltage() {
         d.summary()
     );
     assert_eq!(replayed_supply(&d), "bench", "{}", d.augmented_scenario);
+    // The substitution is said, with the voltage replayed.
+    assert!(
+        d.warnings
+            .iter()
+            .any(|w| w.contains("no [supply] is stated") && w.contains("constant 12 V")),
+        "{:?}",
+        d.warnings
+    );
 }
 
 /// The kind of supply the augmented scenario of `d` replays (`bench` or `battery`).

@@ -541,6 +541,11 @@ pub fn run(a: FitArgs) -> Result<()> {
                 println!("{s}");
             }
             print_physics(&p);
+            // The calibration's own warnings (a supply nobody stated, a flight's preparation);
+            // the recording's doubts, which come first, were printed when it was read.
+            for w in p.diagnosis.warnings.iter().skip(rec.doubts().len()) {
+                eprintln!("warning: {w}");
+            }
             println!("wrote {}", a.model_out.display());
             return Ok(());
         }

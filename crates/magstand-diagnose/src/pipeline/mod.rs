@@ -146,6 +146,15 @@ pub(crate) fn diagnose_with(
     // And the recording's own (its units, its unread columns) before those.
     d.warnings
         .splice(0..0, doubts.into_iter().map(|w| format!("{origin}: {w}")));
+    if let Some(b) = &benched {
+        d.warnings.push(format!(
+            "{}: no [supply] is stated, so the nominal stand is replayed on a constant {} V \
+             supply (not the simulator's default pack): a supply that sags is a finding, \
+             battery_sag",
+            b.origin(),
+            b.params().supply.no_load_voltage_v()
+        ));
+    }
     Ok(d)
 }
 
