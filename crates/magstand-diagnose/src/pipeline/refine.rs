@@ -401,11 +401,9 @@ fn valley_steps(ctx: &mut Context, terms: &mut [Term], weights: &Weights) {
 /// Refits the final model's terms and the command lead under the final model's `weights`,
 /// where the model holds a late magnetometer (`time_offset`), and keeps the result where
 /// `keep` says so of the chi-square's fall and the terms as they end; returns whether it
-/// did. Every term whose chi-square has a basin per interval of the data (the delay, and a
-/// dead zone) is searched over its whole range, in the order they entered the model, and
-/// then the lead; only
-/// where `keep` says so of that are all the terms searched near where they now are
-/// ([`search_near`]), and the lead.
+/// did. The delay is searched over its whole range and then the lead; only where `keep`
+/// says so of that are all the terms searched near where they now are ([`search_near`]),
+/// and the lead.
 ///
 /// The refinements during the search run under the weights of the model before each
 /// acceptance, and afterwards search near where the terms were: a delay's chi-square has a
@@ -415,14 +413,6 @@ fn valley_steps(ctx: &mut Context, terms: &mut [Term], weights: &Weights) {
 /// 0.3 s late magnetometer (50 Hz, seed 1) the final model kept the delay at 0.272 s with a
 /// held-out RMSE of 0.64, 0.35, 1.02 µT; this finds 0.284 s and 0.23, 0.20, 0.28 µT, what
 /// the same recording leaves with the stand stated.
-///
-/// A dead zone calibrated beside a late magnetometer, whose misfit at each command change it
-/// takes up while the delay is not yet where it ends, can likewise stay in another basin: on
-/// the generator's octocopter at 50 Hz (thermal drift beside a 0.3 s late magnetometer,
-/// unstated, seed 81) it ended at 0.26 for the generator's 0.10, and the rows between, left
-/// to the motors armed within it, were named `unexplained`. Searched again over its whole
-/// range beside the final delay, it comes out at 0.133 ± 0.047, and the recording is named
-/// exactly.
 pub(crate) fn polish_beside_delay(
     ctx: &mut Context,
     terms: &mut Vec<Term>,
@@ -437,11 +427,10 @@ pub(crate) fn polish_beside_delay(
         return false;
     };
     let (held, lead) = (terms.clone(), ctx.command_lead);
-    // The delay and a dead zone over their whole ranges, then the lead: where that finds no
-    // significant fall, no well was stepped over, and the passes near it would only cost
-    // replays.
+    // The delay over its whole range, then the lead: where that finds no significant fall,
+    // no well was stepped over, and the passes near it would only cost replays.
     for k in 0..terms.len() {
-        if !terms[k].effect.has_a_basin_per_interval() {
+        if terms[k].effect.name() != TimeOffset.name() {
             continue;
         }
         let searches = terms[k].effect.search(ctx);
