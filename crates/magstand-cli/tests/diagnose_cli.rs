@@ -88,6 +88,51 @@ fn a_delayed_magnetometer_stream_is_named_and_the_outputs_are_written() {
     assert!(c.extra.iter().any(|(n, _)| n == "dist_x_ut"));
 }
 
+/// A scenario without `[supply]` is replayed on a constant voltage, not on the simulator's
+/// default pack (which a run empties), and every output says so: the summary printed, the
+/// JSON's `warnings` and the report's page.
+#[test]
+fn a_scenario_without_a_supply_is_replayed_on_a_constant_voltage_and_says_so() {
+    let dir = tempfile::tempdir().unwrap();
+    let rec = simulate(dir.path(), "bench", &[]);
+    // The shipped stand (a 12 V bench) with its supply left out.
+    let scenario = dir.path().join("no-supply.toml");
+    std::fs::write(
+        &scenario,
+        "name = \"no supply\"\n[program]\nkind = \"stair\"\noff_s = 10.0\nsteps = 20\n\
+         dwell_s = 5.0\ndirection = \"up\"\n[magnetometer]\nodr_hz = 100.0\n",
+    )
+    .unwrap();
+    let (json, report) = (dir.path().join("d.json"), dir.path().join("report"));
+    let r = magstand(&[
+        "diagnose",
+        "--recording",
+        rec.to_str().unwrap(),
+        "--scenario",
+        scenario.to_str().unwrap(),
+        "--json",
+        json.to_str().unwrap(),
+        "--report",
+        report.to_str().unwrap(),
+    ]);
+    assert!(r.ok, "{}", r.stderr);
+    let said = "no [supply] is stated";
+    assert!(r.stdout.contains(said), "{}", r.stdout);
+    let d = magstand_diagnose::Diagnosis::load(&json).unwrap();
+    assert!(
+        d.warnings.iter().any(|w| w.contains(said)),
+        "{:?}",
+        d.warnings
+    );
+    assert!(
+        !d.verdict.iter().any(|n| n == "battery_sag"),
+        "a bench's recording against an unstated supply: {:?}",
+        d.verdict
+    );
+    let page = std::fs::read_to_string(report.join("index.html")).unwrap();
+    assert!(page.contains(said), "the report does not show the warning");
+}
+
 #[test]
 fn a_scenario_with_another_motor_count_is_refused_by_name() {
     let dir = tempfile::tempdir().unwrap();

@@ -67,6 +67,10 @@ pub fn section(d: &Diagnosis) -> Result<Section, ReportError> {
     } else {
         format!("Verdict: {}.", d.verdict.join(", "))
     });
+    // What qualifies the verdict, as the command line prints it: the recording's doubts, a
+    // flight's preparation, a supply nobody stated, structure too small to name.
+    s.text
+        .extend(d.warnings.iter().map(|w| format!("Warning: {w}")));
     s.text.push(format!(
         "Nominal physics: {}. Held-out RMSE x / y / z of its calibrated replay: {} µT; \
          simulation against recording after the accepted effects: {} µT.",
