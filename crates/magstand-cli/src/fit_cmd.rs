@@ -573,6 +573,10 @@ pub fn run(a: FitArgs) -> Result<()> {
                         println!("{s}");
                     }
                     print_choice(&choice);
+                    // The physics kept replays a constant voltage where no supply is stated.
+                    if let Some(w) = magstand_diagnose::unstated_supply_warning(&nominal)? {
+                        eprintln!("warning: {w}");
+                    }
                     println!("wrote {}", a.model_out.display());
                     return Ok(());
                 }

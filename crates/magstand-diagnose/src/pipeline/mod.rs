@@ -146,16 +146,26 @@ pub(crate) fn diagnose_with(
     // And the recording's own (its units, its unread columns) before those.
     d.warnings
         .splice(0..0, doubts.into_iter().map(|w| format!("{origin}: {w}")));
-    if let Some(b) = &benched {
-        d.warnings.push(format!(
-            "{}: no [supply] is stated, so the nominal stand is replayed on a constant {} V \
-             supply (not the simulator's default pack): a supply that sags is a finding, \
-             battery_sag",
-            b.origin(),
-            b.params().supply.no_load_voltage_v()
-        ));
-    }
+    d.warnings.extend(benched.as_ref().map(supply_warning));
     Ok(d)
+}
+
+/// Where `nominal` states no `[supply]`, what a diagnosis (or a physics fit) against it says
+/// of the constant voltage it replays in its place; None where the scenario states its supply
+/// or already has that one.
+pub fn unstated_supply_warning(nominal: &ValidScenario) -> Result<Option<String>, DiagnoseError> {
+    Ok(with_unstated_supply(nominal)?.as_ref().map(supply_warning))
+}
+
+/// The warning of [`unstated_supply_warning`] for `benched`, the scenario with the constant
+/// voltage in its supply's place.
+fn supply_warning(benched: &ValidScenario) -> String {
+    format!(
+        "{}: no [supply] is stated, so the nominal stand is replayed on a constant {} V supply \
+         (not the simulator's default pack): a supply that sags is a finding, battery_sag",
+        benched.origin(),
+        benched.params().supply.no_load_voltage_v()
+    )
 }
 
 /// `nominal` with the supply of the stand assumed when no scenario is given (a constant
@@ -312,5 +322,12 @@ mod tests {
         // No scenario: already that supply.
         let unstated = crate::unstated_nominal().unwrap();
         assert!(with_unstated_supply(&unstated).unwrap().is_none());
+        // Said where, and only where, the supply is replaced.
+        let said = unstated_supply_warning(&given).unwrap().expect("a warning");
+        assert!(
+            said.starts_with("s: no [supply] is stated") && said.contains("12 V"),
+            "{said}"
+        );
+        assert!(unstated_supply_warning(&unstated).unwrap().is_none());
     }
 }
