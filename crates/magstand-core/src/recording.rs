@@ -586,8 +586,6 @@ pub fn typical_interval_s(t_s: &[f64]) -> f64 {
     upper_median(&mut d).unwrap_or(0.0)
 }
 
-/// The median of `values` (the upper of the two middle ones for an even count), reordering
-/// them; None for none.
 /// The least jump of a single row of `mag_*_ut` away from both its neighbours and back that
 /// is doubted, µT: a fifth of the Earth's weakest field, and far beyond a magnetometer's noise.
 const SPIKE_FLOOR_UT: f64 = 10.0;
@@ -600,6 +598,8 @@ const TEMPERATURE_JUMP_C: f64 = 5.0;
 /// a tenfold margin over a board beside motor wiring warming by degrees a minute.
 const TEMPERATURE_RATE_C_PER_S: f64 = 1.0;
 
+/// The median of `values` (the upper of the two middle ones for an even count), reordering
+/// them; None for none.
 fn upper_median(values: &mut [f64]) -> Option<f64> {
     let mid = values.len() / 2;
     (!values.is_empty()).then(|| *values.select_nth_unstable_by(mid, f64::total_cmp).1)
