@@ -147,18 +147,9 @@ pub struct Dataset {
     split: std::sync::OnceLock<Arc<magstand_core::held_out::Split>>,
 }
 
-/// A row counts as motors-off when every command is at most this (one definition for every
-/// crate: the recording's own).
-pub use magstand_core::OFF_COMMAND;
-
-/// Whether every motor command of `row` is off ([`Recording::motors_off`]).
-pub fn motors_off(rec: &Recording, row: usize) -> bool {
-    rec.motors_off(row)
-}
-
 /// The motors-off rows of a recording.
 pub fn motors_off_rows(rec: &Recording) -> Vec<usize> {
-    (0..rec.len()).filter(|&r| motors_off(rec, r)).collect()
+    (0..rec.len()).filter(|&r| rec.motors_off(r)).collect()
 }
 
 /// The eq. 9 reference: the mean field over the motors-off rows, or `None` without any.

@@ -66,8 +66,8 @@ pub use config::{
     paper_ratio_width,
 };
 pub use dataset::{
-    Dataset, HOLDOUT_EVERY, InputKind, InputSpec, MIN_ROWS, OFF_COMMAND, identification_block_s,
-    identification_split, motors_off, motors_off_reference, motors_off_rows,
+    Dataset, HOLDOUT_EVERY, InputKind, InputSpec, MIN_ROWS, identification_block_s,
+    identification_split, motors_off_reference, motors_off_rows,
 };
 pub use error::{FitSetting, IdentError};
 pub use local_linear::{Estimation, LocalLinearNet};

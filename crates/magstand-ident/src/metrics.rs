@@ -2,7 +2,7 @@
 //! apparent heading error, ArduPilot-style interference, and errors against ground truth.
 use serde::Serialize;
 
-use crate::dataset::{motors_off, motors_off_reference, motors_off_rows};
+use crate::dataset::{motors_off_reference, motors_off_rows};
 use crate::model::Model;
 use magstand_core::{Recording, Vec3};
 
@@ -178,7 +178,7 @@ impl Evaluation {
             s.1 += dmag;
             s.2 += dist[r];
             s.3 += e20;
-            if !motors_off(rec, r) {
+            if !rec.motors_off(r) {
                 e20_sq += e20.component_mul(&e20);
                 running += 1;
             }

@@ -21,9 +21,7 @@
 use magstand_core::Recording;
 use magstand_core::rbf::RbfPartition;
 use magstand_ident::local_linear;
-use magstand_ident::{
-    Dataset, Estimation, InputKind, LocalLinearNet, Model, Structure, motors_off,
-};
+use magstand_ident::{Dataset, Estimation, InputKind, LocalLinearNet, Model, Structure};
 use nalgebra::{DMatrix, DVector};
 
 /// Number of parameters per axis of the fixed structure.
@@ -85,7 +83,7 @@ pub fn fixed_structure_bound(rec: &Recording) -> Option<Bound> {
         &inverse_variance,
     )
     .ok()?;
-    let off: Vec<bool> = (0..rec.len()).map(|r| motors_off(rec, r)).collect();
+    let off: Vec<bool> = (0..rec.len()).map(|r| rec.motors_off(r)).collect();
     let crlb_diag = fisher_inverse_diagonal(&data, &off, &net, sd)?;
     Some(Bound {
         truth: net_parameters(&net),
