@@ -403,6 +403,13 @@ fn plan(a: &FitArgs) -> Result<Plan> {
 }
 
 /// Prints the physics model's summary: what was calibrated and its held-out error.
+/// The warnings of the calibration a physics model came from, on stderr.
+fn print_calibration_warnings(m: &magstand_diagnose::AugmentedModel) {
+    for w in &m.calibration_warnings {
+        eprintln!("warning: {w}");
+    }
+}
+
 fn print_physics(p: &magstand_diagnose::model_choice::PhysicsFit) {
     let d = &p.diagnosis;
     println!(
@@ -542,10 +549,8 @@ pub fn run(a: FitArgs) -> Result<()> {
             }
             print_physics(&p);
             // The calibration's own warnings (a supply nobody stated, a flight's preparation);
-            // the recording's doubts, which come first, were printed when it was read.
-            for w in p.diagnosis.warnings.iter().skip(rec.doubts().len()) {
-                eprintln!("warning: {w}");
-            }
+            // the recording's doubts were printed when it was read.
+            print_calibration_warnings(&p.model);
             println!("wrote {}", a.model_out.display());
             return Ok(());
         }
@@ -562,21 +567,17 @@ pub fn run(a: FitArgs) -> Result<()> {
             )?;
             match chosen {
                 magstand_diagnose::model_choice::DisturbanceModel::Physics(m) => {
-                    magstand_diagnose::AugmentedModel {
+                    let m = magstand_diagnose::AugmentedModel {
                         magnetometer: slot,
                         magnetometer_to_body: to_body,
                         ..*m
-                    }
-                    .save(&a.model_out)
-                    .with_context(save_err)?;
+                    };
+                    m.save(&a.model_out).with_context(save_err)?;
                     if let Some(s) = earth_summary {
                         println!("{s}");
                     }
                     print_choice(&choice);
-                    // The physics kept replays a constant voltage where no supply is stated.
-                    if let Some(w) = magstand_diagnose::unstated_supply_warning(&nominal)? {
-                        eprintln!("warning: {w}");
-                    }
+                    print_calibration_warnings(&m);
                     println!("wrote {}", a.model_out.display());
                     return Ok(());
                 }

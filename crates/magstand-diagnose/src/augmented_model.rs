@@ -149,6 +149,13 @@ pub struct AugmentedModel {
     /// followed then).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub current_law: Option<MotorCurrentLaw>,
+    /// What the calibration this model came from warned of, beyond the recording's own
+    /// doubts: a supply nobody stated replayed as a constant voltage, commands logged held, a
+    /// flight's preparation, structure too small to name. Whoever compensates with the model
+    /// should know them, and `fit` prints them whichever way it came to the physics. Absent
+    /// where there were none, and in older files.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub calibration_warnings: Vec<String>,
 }
 
 /// A motor's current as the calibrated current law has it: `sum_j a_per_unit[j] * x_j`, where

@@ -57,6 +57,7 @@ fn coefficients_survive_the_file_bit_for_bit() {
             columns: vec!["speed^1".into()],
             a_per_unit: vec![hard[2]],
         }),
+        calibration_warnings: vec!["no [supply] is stated: \u{00b5}T \"quoted\"".into()],
     };
     let path = std::env::temp_dir().join(format!("magstand-bit-exact-{}.json", std::process::id()));
     model.save(&path).unwrap();

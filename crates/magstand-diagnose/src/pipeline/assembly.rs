@@ -323,6 +323,8 @@ fn model_file(
             .any(|t| t.effect.follows_the_current_law(ctx))
             .then(|| ctx.current_law.clone())
             .flatten(),
+        // The diagnosis's warnings, known once it is assembled, are added by its caller.
+        calibration_warnings: Vec::new(),
     }
 }
 

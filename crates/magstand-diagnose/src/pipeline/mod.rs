@@ -143,10 +143,15 @@ pub(crate) fn diagnose_with(
         // The flight's doubts first: they qualify everything after them.
         d.warnings.splice(0..0, f.warnings);
     }
+    d.warnings.extend(benched.as_ref().map(supply_warning));
+    // The model carries the calibration's warnings; the recording's doubts are the
+    // recording's, told wherever it is read.
+    if let Some(m) = d.model.as_mut() {
+        m.calibration_warnings = d.warnings.clone();
+    }
     // And the recording's own (its units, its unread columns) before those.
     d.warnings
         .splice(0..0, doubts.into_iter().map(|w| format!("{origin}: {w}")));
-    d.warnings.extend(benched.as_ref().map(supply_warning));
     Ok(d)
 }
 
