@@ -398,12 +398,36 @@ fn valley_steps(ctx: &mut Context, terms: &mut [Term], weights: &Weights) {
     }
 }
 
+/// Which terms a final refit beside a delay ([`polish_beside_delay`]) searches over their
+/// whole ranges.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum WholeRange {
+    /// The late magnetometer's delay.
+    Delay,
+    /// A dead zone (calibrated or named), beside the delay as it stands.
+    DeadZone,
+}
+
+impl WholeRange {
+    /// Whether `term` is searched over its whole range.
+    fn picks(self, term: &Term) -> bool {
+        use crate::effects::{DeadZone, Effect, TimeOffset};
+        let name = match self {
+            WholeRange::Delay => TimeOffset.name(),
+            WholeRange::DeadZone => DeadZone.name(),
+        };
+        term.effect.name() == name
+    }
+}
+
 /// Refits the final model's terms and the command lead under the final model's `weights`,
 /// where the model holds a late magnetometer (`time_offset`), and keeps the result where
 /// `keep` says so of the chi-square's fall and the terms as they end; returns whether it
-/// did. The delay is searched over its whole range and then the lead; only where `keep`
-/// says so of that are all the terms searched near where they now are ([`search_near`]),
-/// and the lead.
+/// did. The terms `whole_range` picks (the delay, or a dead zone beside it: each a term
+/// whose chi-square has a basin per sample interval) are searched over their whole ranges
+/// and then the lead; only where `keep` says so of that are all the terms searched near
+/// where they now are ([`search_near`]), and the lead. Where `whole_range` picks no term,
+/// it does nothing.
 ///
 /// The refinements during the search run under the weights of the model before each
 /// acceptance, and afterwards search near where the terms were: a delay's chi-square has a
@@ -417,20 +441,24 @@ pub(crate) fn polish_beside_delay(
     ctx: &mut Context,
     terms: &mut Vec<Term>,
     weights: &Weights,
+    whole_range: WholeRange,
     keep: impl Fn(f64, &Context, &[Term]) -> bool,
 ) -> bool {
     use crate::effects::{Effect, TimeOffset};
-    if !terms.iter().any(|t| t.effect.name() == TimeOffset.name()) {
+    if !terms.iter().any(|t| t.effect.name() == TimeOffset.name())
+        || !terms.iter().any(|t| whole_range.picks(t))
+    {
         return false;
     }
     let Some(before) = chi2_of(ctx, &as_refs(terms), ctx.command_lead, weights) else {
         return false;
     };
     let (held, lead) = (terms.clone(), ctx.command_lead);
-    // The delay over its whole range, then the lead: where that finds no significant fall,
-    // no well was stepped over, and the passes near it would only cost replays.
+    // The picked terms over their whole ranges, then the lead: where that finds no
+    // significant fall, no well was stepped over, and the passes near it would only cost
+    // replays.
     for k in 0..terms.len() {
-        if terms[k].effect.name() != TimeOffset.name() {
+        if !whole_range.picks(&terms[k]) {
             continue;
         }
         let searches = terms[k].effect.search(ctx);
@@ -626,17 +654,18 @@ mod tests {
     /// The delay's final refit asks `keep` once after the delay's whole range and the lead,
     /// and, where told no, leaves the terms and the lead as they were, bit for bit; where
     /// told yes both times, it searches every term near where it is and keeps what it found.
-    /// Without a delay in the model it does nothing and asks nothing.
+    /// Without a delay in the model it does nothing and asks nothing; nor does the dead
+    /// zone's refit without a dead zone.
     #[test]
     fn a_delays_final_refit_keeps_only_what_keep_allows() {
         let stand = TestStand::drifting_stair(2000);
         let w = Weights(vec![[1.0; 3]; 2000]);
-        let run = |names: &[&str], answer: bool| {
+        let run_picking = |names: &[&str], whole_range: WholeRange, answer: bool| {
             let mut ctx = stand.context();
             let mut terms: Vec<Term> = names.iter().map(|n| Term::mid_range(&ctx, n)).collect();
             let start = point(&ctx, &terms);
             let falls = Cell::new(Vec::new());
-            let kept = polish_beside_delay(&mut ctx, &mut terms, &w, |fall, _, _| {
+            let kept = polish_beside_delay(&mut ctx, &mut terms, &w, whole_range, |fall, _, _| {
                 let mut f = falls.take();
                 f.push(fall);
                 falls.set(f);
@@ -644,6 +673,7 @@ mod tests {
             });
             (kept, start, point(&ctx, &terms), falls.take())
         };
+        let run = |names: &[&str], answer: bool| run_picking(names, WholeRange::Delay, answer);
         let (kept, start, end, asked) = run(&["time_offset", "thermal_drift"], false);
         assert!(!kept && asked.len() == 1, "kept {kept}, asked {asked:?}");
         assert_eq!(
@@ -662,6 +692,17 @@ mod tests {
             !kept && asked.is_empty() && start == end,
             "without a delay: kept {kept}, asked {asked:?}, {start:?} -> {end:?}"
         );
+        // The dead zone's refit: nothing without a dead zone in the model, or without a delay.
+        for names in [&["time_offset", "thermal_drift"][..], &["dead_zone"][..]] {
+            let (kept, start, end, asked) = run_picking(names, WholeRange::DeadZone, true);
+            assert!(
+                !kept && asked.is_empty() && start == end,
+                "{names:?}: kept {kept}, asked {asked:?}, {start:?} -> {end:?}"
+            );
+        }
+        let (kept, _, _, asked) =
+            run_picking(&["time_offset", "dead_zone"], WholeRange::DeadZone, false);
+        assert!(!kept && asked.len() == 1, "kept {kept}, asked {asked:?}");
     }
 
     /// The refinement asks after each search of the newest term whether it is at an edge, and
