@@ -225,11 +225,7 @@ impl Diagnosis {
         if !constants.is_empty() {
             let shown: Vec<String> = constants.iter().map(|p| p.shown()).collect();
             s.push_str(&format!("calibrated, not stated: {}\n", shown.join(", ")));
-            for p in constants {
-                if let Some(basis) = &p.basis {
-                    s.push_str(&format!("    {} rests on {basis}\n", p.name));
-                }
-            }
+            push_bases(&mut s, constants);
         }
         for e in &self.effects {
             let params: Vec<String> = e.params.iter().map(Param::shown).collect();
@@ -255,11 +251,7 @@ impl Diagnosis {
             if !params.is_empty() {
                 s.push_str(&format!("    {}\n", params.join(", ")));
             }
-            for p in &e.params {
-                if let Some(basis) = &p.basis {
-                    s.push_str(&format!("    {} rests on {basis}\n", p.name));
-                }
-            }
+            push_bases(&mut s, &e.params);
         }
         s.push_str(&format!(
             "simulation vs recording, held-out RMSE: {} -> {} µT\n",
@@ -267,5 +259,13 @@ impl Diagnosis {
             f3(self.simulation.holdout_rmse_after_ut)
         ));
         s
+    }
+}
+
+/// Each basis of `params` once, with the names resting on it ([`Param::grouped_bases`]).
+fn push_bases<'a>(s: &mut String, params: impl IntoIterator<Item = &'a Param>) {
+    for (names, basis) in Param::grouped_bases(params) {
+        let verb = if names.len() > 1 { "rest" } else { "rests" };
+        s.push_str(&format!("    {} {verb} on {basis}\n", names.join(", ")));
     }
 }

@@ -48,13 +48,22 @@ fn f3(v: [f64; 3]) -> String {
     format!("{:.3} / {:.3} / {:.3}", v[0], v[1], v[2])
 }
 
-/// `name = value ± sd unit`, and what it rests on where it has a basis.
-fn with_basis(p: &magstand_diagnose::Param) -> String {
-    let basis = p
-        .basis
-        .as_ref()
-        .map_or(String::new(), |b| format!(" (rests on {b})"));
-    format!("{}{basis}", p.shown())
+/// Each `name = value ± sd unit`, then what they rest on, each basis once with the names
+/// resting on it (a per-motor term's gains share one), joined by `; `.
+fn with_bases(params: &[&magstand_diagnose::Param]) -> String {
+    params
+        .iter()
+        .map(|p| p.shown())
+        .chain(
+            magstand_diagnose::Param::grouped_bases(params.iter().copied())
+                .into_iter()
+                .map(|(names, basis)| {
+                    let verb = if names.len() > 1 { "rest" } else { "rests" };
+                    format!("{} {verb} on {basis}", names.join(", "))
+                }),
+        )
+        .collect::<Vec<_>>()
+        .join("; ")
 }
 
 /// Builds the diagnosis section.
@@ -92,11 +101,11 @@ pub fn section(d: &Diagnosis) -> Result<Section, ReportError> {
             l.motors
         ));
     }
-    let constants: Vec<String> = d.baseline.stand_constants().map(with_basis).collect();
+    let constants: Vec<&magstand_diagnose::Param> = d.baseline.stand_constants().collect();
     if !constants.is_empty() {
         s.text.push(format!(
             "Stand constants the scenario does not state, calibrated from the recording: {}.",
-            constants.join("; ")
+            with_bases(&constants)
         ));
     }
     let rows: Vec<Vec<String>> = d
@@ -109,11 +118,7 @@ pub fn section(d: &Diagnosis) -> Result<Section, ReportError> {
                     None => e.name.clone(),
                 },
                 e.explanation.clone(),
-                e.params
-                    .iter()
-                    .map(with_basis)
-                    .collect::<Vec<_>>()
-                    .join("; "),
+                with_bases(&e.params.iter().collect::<Vec<_>>()),
                 format!(
                     "throttle {:.2}..{:.2}, {:.0}..{:.0} s, {} ramps, {}",
                     e.located.throttle_range[0],

@@ -209,6 +209,33 @@ impl Param {
         Param { sd: None, ..self }.resting_on(basis)
     }
 
+    /// Each distinct basis of `params` once, in the order it first appears, with the names of
+    /// the parameters resting on it: a term's gains share one basis (a per-motor term's two
+    /// dozen of them), which said once per parameter buried the summary.
+    ///
+    /// ```
+    /// use magstand_diagnose::Param;
+    /// let p = |n: &str| Param::new(n, 1.0, None, "A").resting_on("the law");
+    /// let params = [p("a"), Param::new("b", 2.0, Some(0.1), "A"), p("c")];
+    /// let grouped = Param::grouped_bases(&params);
+    /// assert_eq!(grouped, vec![(vec!["a", "c"], "the law")]);
+    /// ```
+    pub fn grouped_bases<'a>(
+        params: impl IntoIterator<Item = &'a Param>,
+    ) -> Vec<(Vec<&'a str>, &'a str)> {
+        let mut out: Vec<(Vec<&str>, &str)> = Vec::new();
+        for p in params {
+            let Some(basis) = p.basis.as_deref() else {
+                continue;
+            };
+            match out.iter_mut().find(|(_, b)| *b == basis) {
+                Some((names, _)) => names.push(&p.name),
+                None => out.push((vec![&p.name], basis)),
+            }
+        }
+        out
+    }
+
     /// Three parameters `name_x`, `name_y`, `name_z` from per-axis values.
     pub fn axes(name: &str, value: [f64; 3], sd: [f64; 3], unit: &str) -> Vec<Param> {
         ["x", "y", "z"]
