@@ -568,11 +568,39 @@ pub(crate) fn fit_model(
 /// The spread of a model's prediction between the two extreme moments at which each logged
 /// command change could have happened (start or end of its interval): it sets the timing part
 /// of every row's variance.
+///
+/// Where the model holds a late magnetometer (`time_offset`), the extremes are also one
+/// sample interval either side of the fitted delay: a log does not say whether a logged
+/// command acted from its own row on or before it, so the delay is known to an interval
+/// either way (its reported sd holds that), and a row that straddles a step under one
+/// reading does not under the other. Without it, one such row could decide a calibration: on
+/// the independent generator's default stand at 50 Hz with a 0.3 s late magnetometer (seed 13,
+/// unstated), the delay fitted at 0.282 s, one sample early, left a single row 14 rows after
+/// a step down to a command of 0.18 off by 34.85 µT; at that low a load the noise law's
+/// variance is near its floor, the row weighed some 190,000 in the chi-square, and the dead
+/// zone was calibrated at 0.19891 ± 0.00060 above that level (the motors coasting down
+/// undriven in the replay) for the generator's 0.12. Now 0.129 ± 0.040.
 pub(crate) fn timing_spread(ctx: &Context, terms: &[Term], coef: &[[f64; 3]]) -> Vec<Vec3> {
-    let refs = as_refs(terms);
+    use crate::effects::{Effect, TimeOffset};
+    let dt = ctx.rec.typical_interval_s();
+    // The terms with the delay moved by `by`: a later delay shows each change later.
+    let delayed = |by: f64| -> Vec<Term> {
+        terms
+            .iter()
+            .map(|t| Term {
+                theta: if t.effect.name() == TimeOffset.name() {
+                    t.theta.iter().map(|d| d + by).collect()
+                } else {
+                    t.theta.clone()
+                },
+                ..t.clone()
+            })
+            .collect()
+    };
+    let (earliest, latest) = (delayed(-dt), delayed(dt));
     let (early, late) = (
-        build_with_lead(ctx, &refs, 0.0),
-        build_with_lead(ctx, &refs, 1.0),
+        build_with_lead(ctx, &as_refs(&earliest), 0.0),
+        build_with_lead(ctx, &as_refs(&latest), 1.0),
     );
     let (a, b) = (early.design.predict(coef), late.design.predict(coef));
     (0..a.len())
