@@ -243,6 +243,24 @@ pub fn suite_case(label: &str) -> Case {
         .unwrap_or_else(|| panic!("no suite case {label:?}"))
 }
 
+/// Asserts that `d` calibrated the dead zone (nobody stated it) within `sds` of its reported
+/// sd of the generator's `truth`, printing both and the summary where it did not.
+pub fn assert_dead_zone_calibrated_within(d: &Diagnosis, truth: f64, sds: f64) {
+    let dz = d
+        .baseline
+        .calibration
+        .iter()
+        .find(|p| p.name == "motors.dead_zone")
+        .unwrap_or_else(|| panic!("no calibrated dead zone: {}", d.summary()));
+    let sd = dz.sd.unwrap_or_else(|| panic!("{dz:?} has no sd"));
+    assert!(
+        (dz.value - truth).abs() <= sds * sd,
+        "dead zone {} ± {sd}, the generator's {truth} (allowed {sds} sd)\n{}",
+        dz.value,
+        d.summary()
+    );
+}
+
 /// Asserts, per axis, that `effect`'s parameter `{per_unit}_{axis}` in `d` rests on a basis
 /// without an sd (a value per nominal ampere or watt, a scale nobody stated), and that
 /// `{scale_free}_{axis}` (the same at the recording's largest current or power) `holds`

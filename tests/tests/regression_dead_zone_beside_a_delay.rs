@@ -14,7 +14,9 @@
 //! took a worse basin on another recording (`regression_delay_final_model`).
 
 use magstand_standgen::Stand;
-use magstand_tests::independent::{Mode, run_case_on, suite_case};
+use magstand_tests::independent::{
+    Mode, assert_dead_zone_calibrated_within, run_case_on, suite_case,
+};
 
 #[test]
 fn a_dead_zone_calibrated_beside_a_delay_leaves_no_structure_behind() {
@@ -36,18 +38,5 @@ fn a_dead_zone_calibrated_beside_a_delay_leaves_no_structure_behind() {
         "{}",
         o.diagnosis.summary()
     );
-    let dz = o
-        .diagnosis
-        .baseline
-        .calibration
-        .iter()
-        .find(|p| p.name == "motors.dead_zone")
-        .unwrap_or_else(|| panic!("no calibrated dead zone: {}", o.diagnosis.summary()));
-    let sd = dz.sd.unwrap_or_else(|| panic!("{dz:?} has no sd"));
-    assert!(
-        (dz.value - stand.dead_zone).abs() <= 3.0 * sd,
-        "dead zone {} ± {sd}, the generator's {}",
-        dz.value,
-        stand.dead_zone
-    );
+    assert_dead_zone_calibrated_within(&o.diagnosis, stand.dead_zone, 3.0);
 }

@@ -11,7 +11,9 @@
 //! well as over the moment within the interval a command acted (`timing_spread`).
 
 use magstand_standgen::Stand;
-use magstand_tests::independent::{Mode, run_case_on, suite_case};
+use magstand_tests::independent::{
+    Mode, assert_dead_zone_calibrated_within, run_case_on, suite_case,
+};
 
 #[test]
 fn one_row_at_a_step_does_not_decide_the_dead_zone_beside_a_delay() {
@@ -25,18 +27,5 @@ fn one_row_at_a_step_does_not_decide_the_dead_zone_beside_a_delay() {
         "{}",
         o.diagnosis.summary()
     );
-    let dz = o
-        .diagnosis
-        .baseline
-        .calibration
-        .iter()
-        .find(|p| p.name == "motors.dead_zone")
-        .unwrap_or_else(|| panic!("no calibrated dead zone: {}", o.diagnosis.summary()));
-    let sd = dz.sd.unwrap_or_else(|| panic!("{dz:?} has no sd"));
-    assert!(
-        (dz.value - stand.dead_zone).abs() <= 3.0 * sd,
-        "dead zone {} ± {sd}, the generator's {}",
-        dz.value,
-        stand.dead_zone
-    );
+    assert_dead_zone_calibrated_within(&o.diagnosis, stand.dead_zone, 3.0);
 }
