@@ -402,7 +402,6 @@ fn plan(a: &FitArgs) -> Result<Plan> {
     }
 }
 
-/// Prints the physics model's summary: what was calibrated and its held-out error.
 /// The warnings of the calibration a physics model came from, on stderr.
 fn print_calibration_warnings(m: &magstand_diagnose::AugmentedModel) {
     for w in &m.calibration_warnings {
@@ -410,6 +409,7 @@ fn print_calibration_warnings(m: &magstand_diagnose::AugmentedModel) {
     }
 }
 
+/// Prints the physics model's summary: what was calibrated and its held-out error.
 fn print_physics(p: &magstand_diagnose::model_choice::PhysicsFit) {
     let d = &p.diagnosis;
     println!(

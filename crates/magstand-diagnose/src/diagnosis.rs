@@ -262,10 +262,9 @@ impl Diagnosis {
     }
 }
 
-/// Each basis of `params` once, with the names resting on it ([`Param::grouped_bases`]).
+/// Each basis of `params` once, with the names resting on it ([`Param::bases_in_words`]).
 fn push_bases<'a>(s: &mut String, params: impl IntoIterator<Item = &'a Param>) {
-    for (names, basis) in Param::grouped_bases(params) {
-        let verb = if names.len() > 1 { "rest" } else { "rests" };
-        s.push_str(&format!("    {} {verb} on {basis}\n", names.join(", ")));
+    for line in Param::bases_in_words(params) {
+        s.push_str(&format!("    {line}\n"));
     }
 }

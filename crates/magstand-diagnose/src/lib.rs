@@ -84,7 +84,7 @@ pub use error::DiagnoseError;
 pub use locate::Location;
 pub use observer::{DiagnoseObserver, Stage};
 pub use optimize::Search;
-pub use pipeline::{diagnose, diagnose_observed, unstated_supply_warning};
+pub use pipeline::{diagnose, diagnose_observed};
 
 /// The nominal test stand assumed when no scenario is given: the simulator's defaults (dead
 /// zone 0.37, 920 KV motors, default wiring) on a 12 V bench supply.

@@ -54,14 +54,9 @@ fn with_bases(params: &[&magstand_diagnose::Param]) -> String {
     params
         .iter()
         .map(|p| p.shown())
-        .chain(
-            magstand_diagnose::Param::grouped_bases(params.iter().copied())
-                .into_iter()
-                .map(|(names, basis)| {
-                    let verb = if names.len() > 1 { "rest" } else { "rests" };
-                    format!("{} {verb} on {basis}", names.join(", "))
-                }),
-        )
+        .chain(magstand_diagnose::Param::bases_in_words(
+            params.iter().copied(),
+        ))
         .collect::<Vec<_>>()
         .join("; ")
 }

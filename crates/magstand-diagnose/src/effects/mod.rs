@@ -236,6 +236,18 @@ impl Param {
         out
     }
 
+    /// [`Param::grouped_bases`] in words, one line each: `a, b rest on BASIS` (`rests` for
+    /// one name), as the text summary and the report say it.
+    pub fn bases_in_words<'a>(params: impl IntoIterator<Item = &'a Param>) -> Vec<String> {
+        Param::grouped_bases(params)
+            .into_iter()
+            .map(|(names, basis)| {
+                let verb = if names.len() > 1 { "rest" } else { "rests" };
+                format!("{} {verb} on {basis}", names.join(", "))
+            })
+            .collect()
+    }
+
     /// Three parameters `name_x`, `name_y`, `name_z` from per-axis values.
     pub fn axes(name: &str, value: [f64; 3], sd: [f64; 3], unit: &str) -> Vec<Param> {
         ["x", "y", "z"]

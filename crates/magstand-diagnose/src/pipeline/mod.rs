@@ -155,15 +155,9 @@ pub(crate) fn diagnose_with(
     Ok(d)
 }
 
-/// Where `nominal` states no `[supply]`, what a diagnosis (or a physics fit) against it says
-/// of the constant voltage it replays in its place; None where the scenario states its supply
-/// or already has that one.
-pub fn unstated_supply_warning(nominal: &ValidScenario) -> Result<Option<String>, DiagnoseError> {
-    Ok(with_unstated_supply(nominal)?.as_ref().map(supply_warning))
-}
-
-/// The warning of [`unstated_supply_warning`] for `benched`, the scenario with the constant
-/// voltage in its supply's place.
+/// What a diagnosis (or a physics fit) says of the constant voltage it replays where the
+/// scenario states no `[supply]`: `benched` is that scenario with the constant voltage in its
+/// supply's place ([`with_unstated_supply`]).
 fn supply_warning(benched: &ValidScenario) -> String {
     format!(
         "{}: no [supply] is stated, so the nominal stand is replayed on a constant {} V supply \
@@ -327,12 +321,11 @@ mod tests {
         // No scenario: already that supply.
         let unstated = crate::unstated_nominal().unwrap();
         assert!(with_unstated_supply(&unstated).unwrap().is_none());
-        // Said where, and only where, the supply is replaced.
-        let said = unstated_supply_warning(&given).unwrap().expect("a warning");
+        // Said of the replaced supply (and only there: the warning is made from it).
+        let said = supply_warning(&replayed);
         assert!(
             said.starts_with("s: no [supply] is stated") && said.contains("12 V"),
             "{said}"
         );
-        assert!(unstated_supply_warning(&unstated).unwrap().is_none());
     }
 }
