@@ -404,6 +404,22 @@ pub(crate) fn unexplained(
     }
     let white = tests.map(|t| t.p);
     let rmse = holdout_rmse(&resid, &ctx.split.holdout);
+    let mut located = locate(
+        rows,
+        &z,
+        &ctx.split.holdout,
+        Signal::Residual,
+        cfg.significance,
+    );
+    // Structure spread over the whole recording (or carried by a few rows) falls in no window
+    // that `locate` tests: its axes are then those the whiteness test rejects, which is what
+    // named it (a recording with one 1e5 µT spike was `unexplained` on axes "-").
+    if located.axes.is_empty() {
+        located.axes = structured
+            .iter()
+            .map(|&a| magstand_core::AXES[a].to_string())
+            .collect();
+    }
     let report = EffectReport {
         name: UNEXPLAINED.into(),
         form: None,
@@ -411,13 +427,7 @@ pub(crate) fn unexplained(
         explanation: "Structure remains in the held-out residuals that no catalog term \
                       explains; see where it is located."
             .into(),
-        located: locate(
-            rows,
-            &z,
-            &ctx.split.holdout,
-            Signal::Residual,
-            cfg.significance,
-        ),
+        located,
         holdout_rmse_before_ut: rmse,
         holdout_rmse_after_ut: rmse,
         p_value: white.iter().cloned().fold(1.0, f64::min),
