@@ -132,6 +132,7 @@ pub(crate) fn diagnose_with(
     let outcome = forward::forward_search(&mut ctx, &effects, &base, &rows, cfg, observer)?;
     observer.stage(Stage::Assembling);
     let mut d = assembly::assemble(&ctx, nominal, &base, outcome, &rows, cfg)?;
+    d.warnings.extend(assembly::unexplained_bias_warning(&d));
     // A flight's commands come from the import, interpolated at the magnetometer's times.
     if flight.is_none()
         && let Some(hold) = command_hold::held_commands(&rec.thr)
