@@ -63,7 +63,7 @@ fn unexplained_structure_warns_that_the_sds_leave_out_its_bias() {
     let (d, r) = diagnose_one_spike();
     let warned = d["warnings"].as_array().unwrap().iter().any(|w| {
         w.as_str().is_some_and(|w| {
-            w.contains("the calibrated stand constants were fitted beside structure")
+            w.contains("the calibrated constants were fitted beside structure")
                 && w.contains("axes x")
         })
     });

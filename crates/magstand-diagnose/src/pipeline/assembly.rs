@@ -450,7 +450,7 @@ pub(crate) fn unexplained_bias_warning(d: &Diagnosis) -> Option<String> {
         .map(|e| e.name.as_str())
         .collect();
     if d.baseline.stand_constants().next().is_some() {
-        fitted.insert(0, "the calibrated stand constants");
+        fitted.insert(0, "the calibrated constants");
     }
     if fitted.is_empty() {
         return None;

@@ -132,7 +132,6 @@ pub(crate) fn diagnose_with(
     let outcome = forward::forward_search(&mut ctx, &effects, &base, &rows, cfg, observer)?;
     observer.stage(Stage::Assembling);
     let mut d = assembly::assemble(&ctx, nominal, &base, outcome, &rows, cfg)?;
-    d.warnings.extend(assembly::unexplained_bias_warning(&d));
     // A flight's commands come from the import, interpolated at the magnetometer's times.
     if flight.is_none()
         && let Some(hold) = command_hold::held_commands(&rec.thr)
@@ -144,6 +143,9 @@ pub(crate) fn diagnose_with(
         // The flight's doubts first: they qualify everything after them.
         d.warnings.splice(0..0, f.warnings);
     }
+    // After the flight's calibration joins the baseline's: its constants are fitted beside
+    // the structure too.
+    d.warnings.extend(assembly::unexplained_bias_warning(&d));
     d.warnings.extend(benched.as_ref().map(supply_warning));
     // The model carries the calibration's warnings; the recording's doubts are the
     // recording's, told wherever it is read.
