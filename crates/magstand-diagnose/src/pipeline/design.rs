@@ -583,25 +583,21 @@ pub(crate) fn fit_model(
 pub(crate) fn timing_spread(ctx: &Context, terms: &[Term], coef: &[[f64; 3]]) -> Vec<Vec3> {
     use crate::effects::{Effect, TimeOffset};
     let dt = ctx.rec.typical_interval_s();
-    // The terms with the delay moved by `by`: a later delay shows each change later.
-    let delayed = |by: f64| -> Vec<Term> {
-        terms
-            .iter()
-            .map(|t| Term {
-                theta: if t.effect.name() == TimeOffset.name() {
-                    t.theta.iter().map(|d| d + by).collect()
-                } else {
-                    t.theta.clone()
-                },
-                ..t.clone()
-            })
-            .collect()
+    let delay = terms
+        .iter()
+        .position(|t| t.effect.name() == TimeOffset.name());
+    // The design with the delay moved by `by` (a later delay shows each change later) and
+    // each change at `lead` of its interval.
+    let build_at = |by: f64, lead: f64| {
+        let moved: Vec<f64>;
+        let mut refs = as_refs(terms);
+        if let Some(d) = delay {
+            moved = terms[d].theta.iter().map(|v| v + by).collect();
+            refs[d].1 = &moved;
+        }
+        build_with_lead(ctx, &refs, lead)
     };
-    let (earliest, latest) = (delayed(-dt), delayed(dt));
-    let (early, late) = (
-        build_with_lead(ctx, &as_refs(&earliest), 0.0),
-        build_with_lead(ctx, &as_refs(&latest), 1.0),
-    );
+    let (early, late) = (build_at(-dt, 0.0), build_at(dt, 1.0));
     let (a, b) = (early.design.predict(coef), late.design.predict(coef));
     (0..a.len())
         .map(|r| (b[r] + late.fixed[r]) - (a[r] + early.fixed[r]))

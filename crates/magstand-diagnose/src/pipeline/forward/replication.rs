@@ -143,10 +143,12 @@ pub(super) fn replication_failure(
         holdout_rmse(before, &ctx.split.holdout),
         holdout_rmse(&after, &ctx.split.holdout),
     );
-    for (a, axis) in magstand_core::AXES.iter().enumerate() {
-        if !located.axes.iter().any(|x| x == axis) {
-            continue;
-        }
+    // The axes it claims, by index.
+    let claimed: Vec<usize> = (0..3)
+        .filter(|&a| located.axes.iter().any(|x| x == magstand_core::AXES[a]))
+        .collect();
+    for &a in &claimed {
+        let axis = magstand_core::AXES[a];
         // Per held-out block, how much worse the axis got; a rise within the noise of the
         // held-out error is no evidence against the term.
         let worse: Vec<f64> = block_improvements_on(before, &after, weights, ctx.split, &[a])
@@ -160,13 +162,8 @@ pub(super) fn replication_failure(
             ));
         }
     }
-    if !calibration {
-        let claimed: Vec<usize> = (0..3)
-            .filter(|&a| located.axes.iter().any(|x| x == magstand_core::AXES[a]))
-            .collect();
-        if let Some(why) = lowers_none_of(&claimed, rmse_before, rmse_after) {
-            return Some(format!("refused: {why}"));
-        }
+    if !calibration && let Some(why) = lowers_none_of(&claimed, rmse_before, rmse_after) {
+        return Some(format!("refused: {why}"));
     }
     None
 }
