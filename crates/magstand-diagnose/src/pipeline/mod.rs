@@ -101,6 +101,9 @@ pub(crate) fn diagnose_with(
         }
         _ => nominal,
     };
+    // A dead zone nobody stated that no logged command exceeds starts at none.
+    let running = with_running_motors(rec, nominal)?;
+    let nominal = running.as_ref().unwrap_or(nominal);
     // In flight the vehicle's motors and battery are not the nominal stand's: where the
     // current is logged, the current-driven physics follows it.
     let follow_recorded_current = flight.is_some() && rec.bat_a.is_some();
@@ -189,6 +192,26 @@ fn with_unstated_supply(nominal: &ValidScenario) -> Result<Option<ValidScenario>
     Ok(Some(scenario.check(nominal.origin(), None)?))
 }
 
+/// `nominal` with its dead zone at 0 where no scenario states it and no logged command
+/// exceeds it: none otherwise. An unstated dead zone is a starting point that the baseline
+/// calibrates (over its whole search range), not a claim about the stand; left above every
+/// command, the nominal motors would never run and the recording would be refused for a
+/// constant nobody claimed (the simulator's default of 0.37 refused a stand run at up to
+/// 0.36). A recording whose commands are all 0 is still refused, by name, in `prepare`.
+fn with_running_motors(
+    rec: &Recording,
+    nominal: &ValidScenario,
+) -> Result<Option<ValidScenario>, DiagnoseError> {
+    let params = nominal.params();
+    let largest = rec.thr.iter().flatten().fold(0.0, |a: f64, &c| a.max(c));
+    if params.states("motors.dead_zone") || largest > params.motors.dead_zone || largest <= 0.0 {
+        return Ok(None);
+    }
+    let mut scenario = params.clone();
+    scenario.motors.dead_zone = 0.0;
+    Ok(Some(scenario.check(nominal.origin(), None)?))
+}
+
 /// The diagnosis's held-out split: blocks of `block_s`, or of 1/150 of the time with data
 /// (kept in 0.5..10 s), every `holdout_every`th held out.
 pub(crate) fn held_out_split(t_s: &[f64], block_s: Option<f64>, holdout_every: usize) -> Split {
@@ -260,10 +283,21 @@ fn prepare(
         .map(|a| a - avionics)
         .fold(0.0, f64::max);
     if max_motor_a <= 0.0 {
+        let largest = rec.thr.iter().flatten().fold(0.0, |a: f64, &c| a.max(c));
+        let dead_zone = scenario.motors.dead_zone;
+        let why = if largest <= 0.0 {
+            "every motor command is 0".to_string()
+        } else if largest <= dead_zone && nominal.params().states("motors.dead_zone") {
+            format!(
+                "the largest motor command, {largest:.4}, is within the dead zone {dead_zone} that \
+                 {} states (`motors.dead_zone`)",
+                nominal.origin()
+            )
+        } else {
+            format!("no motor draws current under the nominal physics (dead zone {dead_zone})")
+        };
         return Err(bad(format!(
-            "the motors never run under the nominal physics (dead zone {}): expected commands \
-             above the dead zone",
-            scenario.motors.dead_zone
+            "the motors never run: {why}; expected commands that drive the motors"
         )));
     }
     Ok((scenario, split, nominal_trace))
