@@ -305,6 +305,15 @@ pub trait Effect: Sync + Send {
         None
     }
 
+    /// Where this effect's searched parameter `parameter` at the lower end of its range is a
+    /// limit the data determine (the value is that or less, and less changes nothing they
+    /// see), not a value they leave undetermined: what it means. A finding refitted there is
+    /// kept, its value reported as that limit. None, the default: such a fit is refused at
+    /// the edge.
+    fn lower_edge_is_a_limit(&self, _parameter: &str) -> Option<&'static str> {
+        None
+    }
+
     /// The names of the nonlinear parameters it can search, in order (its
     /// `nonlinear_params!` struct's names; none when it is linear in its regressors).
     fn parameters(&self) -> &'static [&'static str] {

@@ -30,8 +30,8 @@ mod replication;
 mod stated;
 
 use candidate::*;
-pub(crate) use edges::search_at_bound;
 use edges::*;
+pub(crate) use edges::{is_a_stated_limit, search_at_bound};
 use replication::*;
 pub(crate) use stated::calibrates;
 use stated::*;

@@ -1,0 +1,101 @@
+//! Regression: a spin-up time the scenario states too slow was kept, and the misfit named
+//! `unexplained`. On the first 80 s (3,999 rows) of the independent generator's default stand
+//! at 50 Hz (seed 13, an effect-free control, whose current follows each command at once), a
+//! scenario stating only `motors.spinup_tau_s = 0.05` (near the simulator's default) or
+//! `0.3` gave `unexplained`, the held-out error 1.4 and 3.6 µT where the refitted spin-up left
+//! 0.2 µT; so did the generator's stated stand with 0.3 s in place of its 1 ms. The refit lay
+//! near the fastest spin-up searched, 1 ms, where a millisecond more or less changes nothing a
+//! 50 Hz recording sees: the chi-square's curvature there gave an sd of 0.70 s (or none at the
+//! bound), so the sd test could not reject the statement, and a refit ending at the bound was
+//! refused as undetermined. The statement is now also tested by the chi-square itself (the fit
+//! at the stated value against the refit's), and a stated spin-up refitted to the fastest one
+//! searched is a limit, reported as such, not a refusal.
+use magstand_core::recording_csv;
+use magstand_diagnose::{DiagnoseConfig, diagnose};
+use magstand_sim::{Scenario, ValidScenario};
+use magstand_standgen::{Case, Stand, generate};
+use magstand_tests::independent::named_param;
+
+/// Rows kept of the generated recording: 80 s at 50 Hz.
+const ROWS_KEPT: usize = 3999;
+
+fn checked(text: &str) -> ValidScenario {
+    Scenario::from_toml_str(text, "stated stand")
+        .and_then(|s| s.check("stated stand", None))
+        .unwrap_or_else(|e| panic!("{e}\n{text}"))
+}
+
+/// A scenario that states the spin-up alone, `spinup_s`.
+fn stating_only_the_spinup(spinup_s: f64) -> ValidScenario {
+    checked(&format!(
+        "name = \"s\"\n[program]\nkind = \"stair\"\nsteps = 4\ndwell_s = 5.0\n\
+         [motors]\nspinup_tau_s = {spinup_s}\n"
+    ))
+}
+
+/// The generator's stand as its stated scenario writes it, with the spin-up stated as
+/// `spinup_s` instead of the 1 ms it states.
+fn stating_the_stand_with_spinup(stand: &Stand, spinup_s: f64) -> ValidScenario {
+    let stated = stand.stated_scenario(stand.dead_zone);
+    let text = stated.replace(
+        "spinup_tau_s = 0.001\n",
+        &format!("spinup_tau_s = {spinup_s}\n"),
+    );
+    assert_ne!(
+        text, stated,
+        "the stated scenario states no 1 ms spin-up:\n{stated}"
+    );
+    checked(&text)
+}
+
+#[test]
+fn a_spin_up_stated_slower_than_the_data_allow_is_named_current_lag() {
+    let stand = Stand {
+        rate_hz: 50.0,
+        ..Stand::default()
+    };
+    let g = generate(&Case {
+        stand: stand.clone(),
+        effects: vec![],
+        rows: magstand_tests::independent::ROWS,
+        seed: 13,
+        log_bat_v: false,
+        log_temp: false,
+    });
+    let csv: String = g
+        .csv
+        .lines()
+        .take(ROWS_KEPT + 1)
+        .flat_map(|l| [l, "\n"])
+        .collect();
+    let rec = recording_csv::read_str(&csv, "control").unwrap();
+    assert_eq!(rec.len(), ROWS_KEPT);
+    let config = DiagnoseConfig::default().check().unwrap();
+    for (what, nominal) in [
+        ("0.05 s stated alone", stating_only_the_spinup(0.05)),
+        ("0.3 s stated alone", stating_only_the_spinup(0.3)),
+        (
+            "0.3 s in the stated stand",
+            stating_the_stand_with_spinup(&stand, 0.3),
+        ),
+    ] {
+        let d = diagnose(&rec, "control", &nominal, &config).unwrap_or_else(|e| panic!("{e}"));
+        assert_eq!(d.verdict, ["current_lag"], "{what}\n{}", d.summary());
+        let p = named_param(&d, "current_lag", "spinup_tau_s").expect("the refitted spin-up");
+        assert!(
+            p.value < 0.02,
+            "{what}: refitted {} ± {:?} s, the generator has none\n{}",
+            p.value,
+            p.sd,
+            d.summary()
+        );
+        // The augmented stand leaves the noise (the generator's 0.08 µT at rest and more under
+        // load), not the statement's misfit (1.4 to 3.6 µT on x).
+        let after = d.simulation.holdout_rmse_after_ut;
+        assert!(
+            after.iter().all(|&r| r < 0.3),
+            "{what}: held-out RMSE after {after:?} µT\n{}",
+            d.summary()
+        );
+    }
+}
