@@ -5,7 +5,6 @@
 //! so the report said where the structure lay on no axis. The axes of an `unexplained` are now
 //! at least those whose whiteness test named it.
 mod common;
-use common::magstand;
 
 /// A recording whose field follows the commands exactly but for one read of 1e5 µT on x, and
 /// the diagnosis of it: its JSON and the command's run.
@@ -24,18 +23,10 @@ fn diagnose_one_spike() -> (serde_json::Value, common::Run) {
         );
     }
     std::fs::write(&csv, text).unwrap();
-    let json = dir.path().join("d.json");
-    let r = magstand(&[
-        "diagnose",
-        "--recording",
-        csv.to_str().unwrap(),
-        "--json",
-        json.to_str().unwrap(),
-    ]);
+    let (r, d) = common::diagnose(&csv, &dir.path().join("d.json"), &[]);
     assert!(r.ok, "{}", r.stderr);
     assert!(r.stdout.contains("read error"), "{}", r.stdout);
-    let d = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
-    (d, r)
+    (d.expect("a diagnosis file"), r)
 }
 
 #[test]

@@ -40,17 +40,9 @@ fn low_throttle_csv(dir: &std::path::Path, scale: f64) -> std::path::PathBuf {
 fn an_unstated_dead_zone_above_every_command_is_calibrated_not_a_refusal() {
     let dir = tempfile::tempdir().unwrap();
     let csv = low_throttle_csv(dir.path(), 1.0);
-    let json = dir.path().join("d.json");
-    let r = magstand(&[
-        "diagnose",
-        "--recording",
-        csv.to_str().unwrap(),
-        "--json",
-        json.to_str().unwrap(),
-    ]);
+    let (r, d) = common::diagnose(&csv, &dir.path().join("d.json"), &[]);
     assert!(r.ok, "{}", r.stderr);
-    let d: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let d = d.expect("a diagnosis file");
     // The field's own spread is about 1.2 µT rms on x; the baseline leaves the noise.
     for (axis, rmse) in d["baseline"]["holdout_rmse_ut"]
         .as_array()
@@ -80,21 +72,13 @@ fn a_stated_dead_zone_above_every_command_is_refused_by_its_key() {
     )
     .unwrap();
     let json = dir.path().join("d.json");
-    let r = magstand(&[
-        "diagnose",
-        "--recording",
-        csv.to_str().unwrap(),
-        "--scenario",
-        scenario.to_str().unwrap(),
-        "--json",
-        json.to_str().unwrap(),
-    ]);
+    let (r, d) = common::diagnose(&csv, &json, &["--scenario", scenario.to_str().unwrap()]);
     assert!(!r.ok, "{}", r.stdout);
     for said in ["low-1.csv", "0.3000", "stand.toml", "`motors.dead_zone`"] {
         assert!(r.stderr.contains(said), "{said} not in: {}", r.stderr);
     }
     assert!(
-        !json.exists(),
+        d.is_none(),
         "no diagnosis is written for a refused recording"
     );
 }

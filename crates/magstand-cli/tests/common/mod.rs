@@ -87,6 +87,29 @@ pub fn flight_spread(stdout: &str) -> Vec<f64> {
         .unwrap_or_default()
 }
 
+/// `magstand diagnose --recording R --json J` with `more` options after them, and the
+/// diagnosis file it wrote, read as JSON (None where it wrote none).
+#[allow(dead_code)] // not every test file diagnoses
+pub fn diagnose(
+    recording: &std::path::Path,
+    json: &std::path::Path,
+    more: &[&str],
+) -> (Run, Option<serde_json::Value>) {
+    let mut args = vec![
+        "diagnose",
+        "--recording",
+        recording.to_str().expect("a UTF-8 path"),
+        "--json",
+        json.to_str().expect("a UTF-8 path"),
+    ];
+    args.extend_from_slice(more);
+    let r = magstand(&args);
+    let d = std::fs::read_to_string(json)
+        .ok()
+        .map(|text| serde_json::from_str(&text).expect("the diagnosis file is JSON"));
+    (r, d)
+}
+
 /// `magstand fit --recording R --model-out M` with no other option, as a user's first fit.
 #[allow(dead_code)] // not every test file fits
 pub fn fit(recording: &str, model_out: &str) -> Run {
