@@ -16,11 +16,10 @@
 //! refused as "within one sample interval of zero", where a delay cannot be told from where
 //! in its interval a command changed. That holds within an interval of the nominal delay, not
 //! of zero: 0.2 s away from the statement, the refit is a finding.
-use magstand_core::recording_csv;
 use magstand_diagnose::{DiagnoseConfig, diagnose};
 use magstand_sim::{Scenario, ValidScenario};
-use magstand_standgen::{Case, Stand, generate};
-use magstand_tests::independent::named_param;
+use magstand_standgen::Stand;
+use magstand_tests::independent::{named_param, recording_on, suite_case};
 
 /// Rows kept of the generated recording: 80 s at 50 Hz.
 const ROWS_KEPT: usize = 3999;
@@ -61,21 +60,8 @@ fn first_80_s_of_the_control() -> (magstand_core::Recording, Stand) {
         rate_hz: 50.0,
         ..Stand::default()
     };
-    let g = generate(&Case {
-        stand: stand.clone(),
-        effects: vec![],
-        rows: magstand_tests::independent::ROWS,
-        seed: 13,
-        log_bat_v: false,
-        log_temp: false,
-    });
-    let csv: String = g
-        .csv
-        .lines()
-        .take(ROWS_KEPT + 1)
-        .flat_map(|l| [l, "\n"])
-        .collect();
-    let rec = recording_csv::read_str(&csv, "control").unwrap();
+    let (whole, _) = recording_on(&stand, &suite_case("control"), 13);
+    let rec = whole.select_rows(|r| r < ROWS_KEPT);
     assert_eq!(rec.len(), ROWS_KEPT);
     (rec, stand)
 }

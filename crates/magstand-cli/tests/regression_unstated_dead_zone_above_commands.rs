@@ -101,13 +101,7 @@ fn the_physics_family_is_tried_on_a_low_throttle_recording() {
     let dir = tempfile::tempdir().unwrap();
     let csv = low_throttle_csv(dir.path(), 1.0);
     let model = dir.path().join("m.json");
-    let r = magstand(&[
-        "fit",
-        "--recording",
-        csv.to_str().unwrap(),
-        "--model-out",
-        model.to_str().unwrap(),
-    ]);
+    let r = common::fit(csv.to_str().unwrap(), model.to_str().unwrap());
     assert!(r.ok, "{}", r.stderr);
     let physics = r
         .stdout

@@ -232,21 +232,16 @@ fn separate_calibration(
         }
         // A finding at the lower edge of a stated constant's range is a limit (a spin-up
         // faster than the data resolve against a slower statement): reported as such.
-        let limit =
-            super::forward::search_at_bound(ctx, t.effect, &t.theta).filter(|(s, _, lower)| {
-                *lower && super::forward::is_a_stated_limit(ctx, t.effect, s.name)
-            });
+        let limit = super::forward::at_a_stated_limit(ctx, t.effect, &t.theta);
         report.params = report
             .params
             .into_iter()
             .map(|p| {
                 let search = searches.iter().find(|s| s.name == p.name);
-                match limit.as_ref().filter(|(s, ..)| s.name == p.name) {
-                    Some((s, ..)) => p.without_sd_resting_on(&format!(
-                        "the lower edge of its search range, {} {}: {}",
-                        s.lo,
-                        s.unit,
-                        t.effect.lower_edge_is_a_limit(s.name).unwrap_or_default()
+                match limit.as_ref().filter(|(s, _)| s.name == p.name) {
+                    Some((s, meaning)) => p.without_sd_resting_on(&format!(
+                        "the lower edge of its search range, {} {}: {meaning}",
+                        s.lo, s.unit
                     )),
                     None => undetermined_within(search, widened(p)),
                 }

@@ -203,13 +203,18 @@ fn with_running_motors(
     nominal: &ValidScenario,
 ) -> Result<Option<ValidScenario>, DiagnoseError> {
     let params = nominal.params();
-    let largest = rec.thr.iter().flatten().fold(0.0, |a: f64, &c| a.max(c));
+    let largest = largest_command(rec);
     if params.states("motors.dead_zone") || largest > params.motors.dead_zone || largest <= 0.0 {
         return Ok(None);
     }
     let mut scenario = params.clone();
     scenario.motors.dead_zone = 0.0;
     Ok(Some(scenario.check(nominal.origin(), None)?))
+}
+
+/// The largest motor command `rec` logs, 0 where none is above 0.
+fn largest_command(rec: &Recording) -> f64 {
+    rec.thr.iter().flatten().fold(0.0, |a: f64, &c| a.max(c))
 }
 
 /// The diagnosis's held-out split: blocks of `block_s`, or of 1/150 of the time with data
@@ -283,7 +288,7 @@ fn prepare(
         .map(|a| a - avionics)
         .fold(0.0, f64::max);
     if max_motor_a <= 0.0 {
-        let largest = rec.thr.iter().flatten().fold(0.0, |a: f64, &c| a.max(c));
+        let largest = largest_command(rec);
         let dead_zone = scenario.motors.dead_zone;
         let why = if largest <= 0.0 {
             "every motor command is 0".to_string()

@@ -12,7 +12,7 @@ pub(super) fn at_edge(ctx: &Context, effect: &dyn Effect, theta: &[f64]) -> Opti
         return None;
     }
     search_at_bound(ctx, effect, theta)
-        .filter(|(search, _, lower)| !(*lower && is_a_stated_limit(ctx, effect, search.name)))
+        .filter(|_| at_a_stated_limit(ctx, effect, theta).is_none())
         .map(|(search, v, _)| {
             format!(
                 "its {} = {v:.4} lies at the edge of its search range [{}, {}], so the data do not determine it",
@@ -23,13 +23,22 @@ pub(super) fn at_edge(ctx: &Context, effect: &dyn Effect, theta: &[f64]) -> Opti
         .or_else(|| effect.undetermined_at(ctx, theta))
 }
 
-/// Whether `effect`'s parameter `parameter` at the lower end of its range is a limit the data
+/// Where `effect`'s parameters `theta` lie at the lower end of a range that is a limit the data
 /// determine ([`Effect::lower_edge_is_a_limit`]) against a stand constant the scenario
-/// states: the finding is that the statement is too high. Only there: the same lag with
-/// nothing stated is a calibration, and behind a flight's measured current a lag at its
-/// fastest is no lag at all.
-pub(crate) fn is_a_stated_limit(ctx: &Context, effect: &dyn Effect, parameter: &str) -> bool {
-    stated_constant(effect, ctx).is_some() && effect.lower_edge_is_a_limit(parameter).is_some()
+/// states: that search and what the limit means (the finding is that the statement is too
+/// high). Only there: the same lag with nothing stated is a calibration, and behind a
+/// flight's measured current a lag at its fastest is no lag at all.
+pub(crate) fn at_a_stated_limit(
+    ctx: &Context,
+    effect: &dyn Effect,
+    theta: &[f64],
+) -> Option<(crate::optimize::Search, &'static str)> {
+    stated_constant(effect, ctx)?;
+    let (search, _, lower) = search_at_bound(ctx, effect, theta)?;
+    let meaning = effect
+        .lower_edge_is_a_limit(search.name)
+        .filter(|_| lower)?;
+    Some((search, meaning))
 }
 
 /// The first of `effect`'s searched parameters `theta` at the edge of its range ([`at_edge`]):

@@ -31,7 +31,7 @@ mod stated;
 
 use candidate::*;
 use edges::*;
-pub(crate) use edges::{is_a_stated_limit, search_at_bound};
+pub(crate) use edges::{at_a_stated_limit, search_at_bound};
 use replication::*;
 pub(crate) use stated::calibrates;
 use stated::*;
