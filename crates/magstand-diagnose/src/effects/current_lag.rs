@@ -12,7 +12,7 @@ use crate::optimize::Search;
 pub const MAX_SPINUP_S: f64 = 0.3;
 
 /// The fastest spin-up searched, s: a small motor with a light propeller.
-const FASTEST_SPINUP_S: f64 = 0.001;
+pub(crate) const FASTEST_SPINUP_S: f64 = 0.001;
 
 /// Motor current follows a command step through a first-order lag (spin-up) other than the
 /// nominal one.
@@ -52,8 +52,22 @@ impl Effect for CurrentLag {
     fn stand_constant(&self, ctx: &Context) -> Option<(&'static str, f64)> {
         // Behind a measured current the spin-up is already in the measurement: a lag of the
         // field behind it is physics of its own, not the stand's constant.
-        (!ctx.follow_recorded_current)
-            .then_some(("motors.spinup_tau_s", ctx.nominal.motors.spinup_tau_s))
+        if ctx.follow_recorded_current {
+            return None;
+        }
+        // A lag of the currents the scenario states (`motors.current_lag_s`, as an augmented
+        // scenario of a slow `current_lag` writes it) is the lag this effect re-fits: its fit
+        // replaces the statement (see `apply`), so a recording without that lag rejects it.
+        // Tested against the spin-up instead, a stated 0.5 s lag the data did not have could
+        // only be added to, and its misfit went to a delay and `unexplained`.
+        let motors = &ctx.nominal.motors;
+        Some(
+            if ctx.nominal.states("motors.current_lag_s") && motors.current_lag_s > 0.0 {
+                ("motors.current_lag_s", motors.current_lag_s)
+            } else {
+                ("motors.spinup_tau_s", motors.spinup_tau_s)
+            },
+        )
     }
     fn lower_edge_is_a_limit(&self, parameter: &str) -> Option<&'static str> {
         // A spin-up at the fastest searched is a rotor that follows each command within what
@@ -86,6 +100,9 @@ impl Effect for CurrentLag {
         };
         if p.spinup_tau_s <= MAX_SPINUP_S {
             s.motors.spinup_tau_s = p.spinup_tau_s;
+            // The one lag the fit has is all the current lags: a stated lag of the currents
+            // is replaced, not kept beside it (0 already where none is stated).
+            s.motors.current_lag_s = 0.0;
         } else if !ctx.nominal.states("motors.spinup_tau_s") {
             // Behind a lag this slow an unstated spin-up is not kept at the nominal value: the
             // lag, calibrated from the data, takes up whatever spin-up the rotors have (the two

@@ -48,6 +48,7 @@ mod thermal_drift;
 mod time_offset;
 
 pub use battery_sag::BatterySag;
+pub(crate) use current_lag::FASTEST_SPINUP_S;
 pub use current_lag::{CurrentLag, MAX_SPINUP_S};
 #[cfg(test)]
 pub(crate) use dead_zone::DEAD_ZONE_SEARCH;
@@ -335,7 +336,9 @@ pub trait Effect: Sync + Send {
     /// an effect that is a different value of a nominal constant (a dead zone, a spin-up time)
     /// rather than physics the nominal stand lacks. Where the scenario states the constant, such
     /// an effect is named only where the data reject the stated value: its fit must lie beyond
-    /// 3 standard uncertainties of it.
+    /// 3 standard uncertainties of it. The key's last part is the effect's one parameter, or,
+    /// for a constant the parameter stands in for (a stated lag of the currents, which the
+    /// spin-up's parameter replaces), another quantity of the same unit.
     fn stand_constant(&self, _ctx: &Context) -> Option<(&'static str, f64)> {
         None
     }

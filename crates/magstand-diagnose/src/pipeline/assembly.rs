@@ -250,7 +250,10 @@ fn separate_calibration(
         if let Some((key, stated)) = constant {
             if ctx.nominal.states(key) {
                 if let Some(fitted) = report.params.first() {
-                    let (name, unit) = (format!("stated_{}", fitted.name), fitted.unit.clone());
+                    // Named by the key stated: a stated lag of the currents is refitted by the
+                    // spin-up's parameter, which then holds the one lag there is.
+                    let stated_name = key.rsplit('.').next().unwrap_or(key);
+                    let (name, unit) = (format!("stated_{stated_name}"), fitted.unit.clone());
                     report.params.push(Param::new(name, stated, None, &unit));
                 }
             } else if let Some(why) = t.effect.beyond_calibration(&t.theta) {

@@ -214,6 +214,14 @@ pub(crate) fn build_with_lead(ctx: &Context, terms: &[(&dyn Effect, &[f64])], le
     } else {
         0.0
     };
+    // Behind a stated lag an unstated spin-up is not the nominal one: as behind a finding of
+    // such a lag (`CurrentLag::apply`), the lag takes up whatever spin-up the rotors have,
+    // so the baseline is the model the refit at the statement has.
+    let spinup_behind_s = if stated_lag_s.is_some() && !ctx.nominal.states("motors.spinup_tau_s") {
+        crate::effects::FASTEST_SPINUP_S
+    } else {
+        spinup_behind_s
+    };
     // The replay reads a late magnetometer's rows at their delayed times by its own steps (a
     // command change is a step at its moment, not a ramp between two rows: at a low rate a
     // ramp misses half the step at the row the delay puts within its interval).
