@@ -515,7 +515,7 @@ pub fn catalog() -> Vec<Box<dyn Effect>> {
     vec![
         Box::new(BatterySag::NOMINAL),
         Box::new(ThermalDrift),
-        Box::new(CurrentLag),
+        Box::new(CurrentLag::NOMINAL),
         Box::new(TimeOffset),
         Box::new(Hysteresis),
         Box::new(MotorAsymmetry),
@@ -533,7 +533,9 @@ pub(crate) fn find(name: &str, variant: Option<&str>) -> Option<&'static dyn Eff
             .iter()
             .find(|e| e.name() == name)
             .map(|e| e.as_ref()),
-        Some(v) => battery_sag::richer_forms().find(|e| e.name() == name && e.variant() == Some(v)),
+        Some(v) => battery_sag::richer_forms()
+            .chain(current_lag::richer_forms())
+            .find(|e| e.name() == name && e.variant() == Some(v)),
     }
 }
 
