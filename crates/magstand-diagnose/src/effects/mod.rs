@@ -1047,6 +1047,10 @@ mod tests {
             let rich = find("battery_sag", Some(form)).map(|f| (f.name(), f.variant()));
             assert_eq!(rich, Some(("battery_sag", Some(form))));
         }
+        let lag =
+            find("current_lag", Some("without_stated_spinup")).map(|f| (f.name(), f.variant()));
+        assert_eq!(lag, Some(("current_lag", Some("without_stated_spinup"))));
+        assert!(find("battery_sag", Some("without_stated_spinup")).is_none());
         assert!(find("battery_sag", Some("no_such_form")).is_none());
         assert!(find("thermal_drift", Some("free_discharge")).is_none());
         assert!(find("no_such_effect", None).is_none());
