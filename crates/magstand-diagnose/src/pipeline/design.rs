@@ -209,18 +209,19 @@ pub(crate) fn build_with_lead(ctx: &Context, terms: &[(&dyn Effect, &[f64])], le
     // would take the half as a step of its own and the rest as another, an interval later:
     // the chi-square would dip where the moment lies a spin-up time before the row, a false
     // optimum the timing search can settle in.
-    let spinup_behind_s = if any_lag_s.is_some() {
-        std::mem::take(&mut s.motors.spinup_tau_s)
-    } else {
-        0.0
-    };
     // Behind a stated lag an unstated spin-up is not the nominal one: as behind a finding of
     // such a lag (`CurrentLag::apply`), the lag takes up whatever spin-up the rotors have,
     // so the baseline is the model the refit at the statement has.
-    let spinup_behind_s = if stated_lag_s.is_some() && !ctx.nominal.states("motors.spinup_tau_s") {
-        crate::effects::FASTEST_SPINUP_S
-    } else {
-        spinup_behind_s
+    let spinup_behind_s = match any_lag_s {
+        Some(_) => {
+            let replayed_s = std::mem::take(&mut s.motors.spinup_tau_s);
+            if stated_lag_s.is_some() && !ctx.nominal.states("motors.spinup_tau_s") {
+                crate::effects::FASTEST_SPINUP_S
+            } else {
+                replayed_s
+            }
+        }
+        None => 0.0,
     };
     // The replay reads a late magnetometer's rows at their delayed times by its own steps (a
     // command change is a step at its moment, not a ramp between two rows: at a low rate a
