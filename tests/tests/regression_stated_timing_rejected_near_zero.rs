@@ -43,32 +43,45 @@ fn stating_only_the_spinup(spinup_s: f64) -> ValidScenario {
     ))
 }
 
+/// The generator's stand as its stated scenario writes it, with the line stating its 1 ms
+/// spin-up replaced by `motors` (lines of its `[motors]` table).
+fn stating_the_stand_with(stand: &Stand, motors: &str) -> ValidScenario {
+    let spinup = "spinup_tau_s = 0.001\n";
+    let stated = stand.stated_scenario(stand.dead_zone);
+    assert!(
+        stated.contains(spinup),
+        "the stated scenario states no 1 ms spin-up:\n{stated}"
+    );
+    checked(&stated.replace(spinup, motors))
+}
+
 /// The generator's stand as its stated scenario writes it, with the spin-up stated as
 /// `spinup_s` instead of the 1 ms it states.
 fn stating_the_stand_with_spinup(stand: &Stand, spinup_s: f64) -> ValidScenario {
-    let stated = stand.stated_scenario(stand.dead_zone);
-    let text = stated.replace(
-        "spinup_tau_s = 0.001\n",
-        &format!("spinup_tau_s = {spinup_s}\n"),
-    );
-    assert_ne!(
-        text, stated,
-        "the stated scenario states no 1 ms spin-up:\n{stated}"
-    );
-    checked(&text)
+    stating_the_stand_with(stand, &format!("spinup_tau_s = {spinup_s}\n"))
 }
 
-/// The first 80 s (3,999 rows) of the generator's default stand at 50 Hz, effect-free
-/// control, seed 13, and that stand.
-fn first_80_s_of_the_control() -> (magstand_core::Recording, Stand) {
+/// The first 80 s (3,999 rows) of the generator's default stand at 50 Hz, seed 13, in the
+/// suite's case `label`, and that stand.
+fn first_80_s_of(label: &str) -> (magstand_core::Recording, Stand) {
     let stand = Stand {
         rate_hz: 50.0,
         ..Stand::default()
     };
-    let (whole, _) = recording_on(&stand, &suite_case("control"), 13);
+    let (whole, _) = recording_on(&stand, &suite_case(label), 13);
     let rec = whole.select_rows(|r| r < ROWS_KEPT);
     assert_eq!(rec.len(), ROWS_KEPT);
     (rec, stand)
+}
+
+/// [`first_80_s_of`] the effect-free control.
+fn first_80_s_of_the_control() -> (magstand_core::Recording, Stand) {
+    first_80_s_of("control")
+}
+
+/// [`first_80_s_of`] the case with a 0.5 s lag of the current behind each command.
+fn first_80_s_with_a_half_second_lag() -> (magstand_core::Recording, Stand) {
+    first_80_s_of("current lag 0.5 s")
 }
 
 #[test]
@@ -140,21 +153,10 @@ fn a_delay_stated_where_the_data_put_none_is_named_time_offset() {
 /// The generator's stand as its stated scenario writes it, with a lag of the currents stated
 /// as `lag_s` beside its 1 ms spin-up.
 fn stating_the_stand_with_current_lag(stand: &Stand, lag_s: f64) -> ValidScenario {
-    let spinup = "spinup_tau_s = 0.001\n";
-    let stated = stand.stated_scenario(stand.dead_zone);
-    assert!(stated.contains(spinup), "{stated}");
-    checked(&stated.replace(spinup, &format!("{spinup}current_lag_s = {lag_s}\n")))
-}
-
-/// The first 80 s of the generator's default stand at 50 Hz, seed 13, with a 0.5 s lag of
-/// the current behind each command.
-fn first_80_s_with_a_half_second_lag() -> magstand_core::Recording {
-    let stand = Stand {
-        rate_hz: 50.0,
-        ..Stand::default()
-    };
-    let (whole, _) = recording_on(&stand, &suite_case("current lag 0.5 s"), 13);
-    whole.select_rows(|r| r < ROWS_KEPT)
+    stating_the_stand_with(
+        stand,
+        &format!("spinup_tau_s = 0.001\ncurrent_lag_s = {lag_s}\n"),
+    )
 }
 
 #[test]
@@ -183,11 +185,7 @@ fn a_current_lag_stated_where_the_data_put_none_is_named_current_lag() {
 
 #[test]
 fn a_current_lag_stated_as_the_data_have_it_stands_and_a_wrong_one_is_refitted() {
-    let stand = Stand {
-        rate_hz: 50.0,
-        ..Stand::default()
-    };
-    let rec = first_80_s_with_a_half_second_lag();
+    let (rec, stand) = first_80_s_with_a_half_second_lag();
     let config = DiagnoseConfig::default().check().unwrap();
     let right = stating_the_stand_with_current_lag(&stand, 0.5);
     let d = diagnose(&rec, "lag", &right, &config).unwrap_or_else(|e| panic!("{e}"));
@@ -217,11 +215,7 @@ fn assert_lag_refitted_at_half_a_second(d: &magstand_diagnose::Diagnosis, what: 
 /// the stated spin-up is kept where the data ask for it.
 #[test]
 fn a_slow_lag_beside_a_spin_up_stated_wrong_is_the_only_lag() {
-    let stand = Stand {
-        rate_hz: 50.0,
-        ..Stand::default()
-    };
-    let rec = first_80_s_with_a_half_second_lag();
+    let (rec, stand) = first_80_s_with_a_half_second_lag();
     let config = DiagnoseConfig::default().check().unwrap();
     let nominal = stating_the_stand_with_spinup(&stand, 0.06);
     let d = diagnose(&rec, "lag", &nominal, &config).unwrap_or_else(|e| panic!("{e}"));
